@@ -1,0 +1,1 @@
+//! CPU BVH depth rendering of triangle meshes. Filled by its own issue.
