@@ -1,5 +1,5 @@
 //! The equivolumetric grid of one level: cell centres, `locate` and `nearest`.
-use std::f64::consts::{FRAC_PI_2, TAU};
+use std::f64::consts::TAU;
 use std::ops::Range;
 use std::sync::OnceLock;
 
@@ -11,12 +11,13 @@ use crate::cell::{
     bin_count, cell_count, cell_volume, check_cell, check_level, children, decode, encode, parent,
     pixel_count,
 };
-use crate::hopf::{along_fibre, fibre_base, lon_lat, psi, rotated_z_axis};
+use crate::hopf::{Section, along_fibre, direction, lon_lat, psi, rotated_z_axis};
 use crate::nearest::NearestIndex;
 
 /// The equivolumetric SO(3) grid of one level (Yershova et al. 2010, as used by Implicit-PDF):
 /// HEALPix pixel centres (nested, nside = 2^level) for the direction of the rotated z-axis,
-/// times `6·2^level` evenly spaced bin centres of the rotation ψ about it.
+/// times `6·2^level` evenly spaced bin centres of the rotation ψ about it (Hopf coordinates
+/// with a section per hemisphere, so that every cell is compact; see the crate docs).
 ///
 /// Building a `Grid` costs one HEALPix centre per pixel (`12·4^level`); the rotations are
 /// generated on demand ([`Grid::rotations`]) and the tables for [`Grid::nearest`] on its first
@@ -24,7 +25,7 @@ use crate::nearest::NearestIndex;
 #[derive(Debug)]
 pub struct Grid {
     level: u8,
-    /// `q_z(φ) ⊗ q_y(θ)` of every pixel centre, `[w, x, y, z]`.
+    /// The section `σ(c)` at every pixel centre `c`, `[w, x, y, z]`.
     pixel_bases: Vec<[f64; 4]>,
     /// `(cos ψ/2, sin ψ/2)` of every bin centre `ψ = (k + ½)·2π/bins`.
     half_psi: Vec<[f64; 2]>,
@@ -40,7 +41,7 @@ impl Grid {
             .into_par_iter()
             .map(|pixel| {
                 let (lon, lat) = layer.center(pixel);
-                fibre_base(FRAC_PI_2 - lat, lon)
+                Section::of_pixel(level, pixel).base(&direction(lon, lat))
             })
             .collect();
         let bins = bin_count(level);
@@ -164,10 +165,12 @@ impl Grid {
 pub fn locate(level: u8, rotation: &UnitQuaternion<f64>) -> Result<u64, GridError> {
     check_level(level)?;
     let q = checked_wxyz(rotation)?;
-    let (lon, lat) = lon_lat(&rotated_z_axis(&q));
+    let axis = rotated_z_axis(&q);
+    let (lon, lat) = lon_lat(&axis);
     let pixel = cdshealpix::nested::get(level).hash(lon, lat);
+    let base = Section::of_pixel(level, pixel).base(&axis);
     let bins = bin_count(level);
-    let bin = ((psi(&q) / TAU * bins as f64) as u64).min(bins - 1);
+    let bin = ((psi(&base, &q) / TAU * bins as f64) as u64).min(bins - 1);
     Ok(encode(level, pixel, bin))
 }
 

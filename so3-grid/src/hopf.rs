@@ -1,18 +1,52 @@
-//! Hopf coordinates of SO(3) (Yershova et al. 2010, §2): a rotation is written as
-//! `R = Rz(φ) · Ry(θ) · Rz(ψ)` where `(θ, φ)` (colatitude, longitude) is the direction `R·ẑ` of
-//! the rotated z-axis on S² and `ψ ∈ [0, 2π)` the rotation about it. Haar measure factors as
-//! `sin θ dθ dφ dψ / 8`, so equal-area cells on S² times equal arcs of ψ have equal volume.
+//! Hopf coordinates of SO(3) (Yershova et al. 2010, §2): a rotation is `R = σ(s) · Rz(ψ)`
+//! where `s = R·ẑ` is the direction of the rotated z-axis on S², `σ(s)` is a fixed rotation
+//! taking ẑ to `s` (a *section* of the fibration) and `ψ ∈ [0, 2π)` the rotation about the
+//! z-axis after it. Haar measure factors into area on S² times arc length of ψ for any
+//! section, so equal-area cells on S² times equal arcs of ψ have equal volume.
+//!
+//! No section is continuous on the whole sphere, and a cell is compact only where its section
+//! is continuous (with Euler angles, `σ = Rz(φ)Ry(θ)`, cells at the poles stretch over 90° of
+//! rotation). So two sections are used: the shortest arc from ẑ ("north", singular only at
+//! −ẑ) for the northern and equatorial HEALPix base pixels, and the shortest arc from −ẑ
+//! after a half turn about x ("south", singular only at +ẑ) for the southern ones.
 //!
 //! Quaternions here are `[w, x, y, z]` arrays of f64.
 
 use std::f64::consts::{FRAC_PI_2, TAU};
 
-/// `q_z(φ) ⊗ q_y(θ)`: the rotation taking ẑ to the direction with colatitude `θ`, longitude `φ`
-/// (the base of the fibre; the fibre is `base ⊗ q_z(ψ)`).
-pub(crate) fn fibre_base(colatitude: f64, longitude: f64) -> [f64; 4] {
-    let (st, ct) = (0.5 * colatitude).sin_cos();
-    let (sp, cp) = (0.5 * longitude).sin_cos();
-    [cp * ct, -sp * st, cp * st, sp * ct]
+/// The section used for a pixel: by its HEALPix base pixel (0–7 north, 8–11 south).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Section {
+    /// Shortest arc ẑ → s: `(1 + z, −y, x, 0) / √(2(1 + z))`.
+    North,
+    /// Shortest arc −ẑ → s after `Rx(π)`: `(−y, 1 − z, 0, x) / √(2(1 − z))`.
+    South,
+}
+
+impl Section {
+    /// The section of a HEALPix pixel at `depth`.
+    pub(crate) fn of_pixel(depth: u8, pixel: u64) -> Self {
+        if pixel >> (2 * u32::from(depth)) >= 8 {
+            Section::South
+        } else {
+            Section::North
+        }
+    }
+
+    /// `σ(s)`: a rotation taking ẑ to the unit direction `s`.
+    pub(crate) fn base(self, s: &[f64; 3]) -> [f64; 4] {
+        let [x, y, z] = *s;
+        let q = match self {
+            Section::North => [1.0 + z, -y, x, 0.0],
+            Section::South => [-y, 1.0 - z, 0.0, x],
+        };
+        let norm = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
+        if norm < 1e-300 {
+            // The section's singular pole (never reached by the pixels using it).
+            return [0.0, 1.0, 0.0, 0.0];
+        }
+        q.map(|c| c / norm)
+    }
 }
 
 /// `base ⊗ q_z(ψ)` where `cos_sin_half_psi = (cos ψ/2, sin ψ/2)`.
@@ -40,6 +74,15 @@ pub(crate) fn fibre_components(base: &[f64; 4], q: &[f64; 4]) -> (f64, f64) {
     )
 }
 
+/// The fibre angle `ψ ∈ [0, 2π)` of `q` relative to `base` (exact when `q` is on its fibre).
+#[inline]
+pub(crate) fn psi(base: &[f64; 4], q: &[f64; 4]) -> f64 {
+    let (w, z) = fibre_components(base, q);
+    let psi = (2.0 * z.atan2(w)).rem_euclid(TAU);
+    // rem_euclid can round a tiny negative angle up to exactly 2π.
+    if psi >= TAU { 0.0 } else { psi }
+}
+
 /// The direction `R·ẑ` (third column of R) of a unit quaternion.
 #[inline]
 pub(crate) fn rotated_z_axis(q: &[f64; 4]) -> [f64; 3] {
@@ -57,7 +100,6 @@ pub(crate) fn lon_lat(direction: &[f64; 3]) -> (f64, f64) {
     let [x, y, z] = *direction;
     let lon = y.atan2(x).rem_euclid(TAU);
     let lat = z.atan2(x.hypot(y)).clamp(-FRAC_PI_2, FRAC_PI_2);
-    // rem_euclid can round a tiny negative angle up to exactly 2π.
     (if lon >= TAU { 0.0 } else { lon }, lat)
 }
 
@@ -69,48 +111,40 @@ pub(crate) fn direction(lon: f64, lat: f64) -> [f64; 3] {
     [cb * cl, cb * sl, sb]
 }
 
-/// The angle `ψ ∈ [0, 2π)` about the rotated z-axis: `atan2(R₂₁, −R₂₀)`. At the poles
-/// (`R·ẑ = ±ẑ`), where ψ and φ are not separable, this gives 0.
-#[inline]
-pub(crate) fn psi(q: &[f64; 4]) -> f64 {
-    let [w, x, y, z] = *q;
-    let psi = (y * z + w * x).atan2(w * y - x * z).rem_euclid(TAU);
-    if psi >= TAU { 0.0 } else { psi }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::{Quaternion, UnitQuaternion, Vector3};
+    use proptest::prelude::*;
 
-    fn as_nalgebra(q: [f64; 4]) -> UnitQuaternion<f64> {
-        UnitQuaternion::new_unchecked(Quaternion::new(q[0], q[1], q[2], q[3]))
+    proptest! {
+        #[test]
+        fn sections_take_z_to_the_direction_and_psi_round_trips(
+            lon in 0.0..TAU, lat in -1.5..1.5f64, psi_angle in 0.0..TAU, south in any::<bool>()
+        ) {
+            let s = direction(lon, lat);
+            let section = if south { Section::South } else { Section::North };
+            let base = section.base(&s);
+            let q = along_fibre(&base, [(0.5 * psi_angle).cos(), (0.5 * psi_angle).sin()]);
+            let axis = rotated_z_axis(&q);
+            prop_assert!((0..3).all(|i| (axis[i] - s[i]).abs() < 1e-12));
+            let back = psi(&base, &q);
+            let gap = (back - psi_angle).abs();
+            prop_assert!(gap.min(TAU - gap) < 1e-9);
+            let (lon2, lat2) = lon_lat(&axis);
+            prop_assert!((lat2 - lat).abs() < 1e-9);
+            let lon_gap = (lon2 - lon).abs();
+            prop_assert!(lon_gap.min(TAU - lon_gap) < 1e-9);
+        }
     }
 
     #[test]
-    fn coordinates_are_zyz_euler_angles() {
-        let (theta, phi, psi_angle) = (1.1f64, 4.0f64, 2.5f64);
-        let q = along_fibre(
-            &fibre_base(theta, phi),
-            [(0.5 * psi_angle).cos(), (0.5 * psi_angle).sin()],
-        );
-        let expected = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), phi)
-            * UnitQuaternion::from_axis_angle(&Vector3::y_axis(), theta)
-            * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), psi_angle);
-        assert!(as_nalgebra(q).angle_to(&expected) < 1e-12);
-        let axis = rotated_z_axis(&q);
-        let (lon, lat) = lon_lat(&axis);
-        assert!((lon - phi).abs() < 1e-12 && (lat - (FRAC_PI_2 - theta)).abs() < 1e-12);
-        assert!((psi(&q) - psi_angle).abs() < 1e-12);
-        let on_sphere = direction(lon, lat);
-        assert!((0..3).all(|i| (on_sphere[i] - axis[i]).abs() < 1e-12));
-    }
-
-    #[test]
-    fn the_pole_is_finite() {
-        let q = [0.6f64.cos(), 0.0, 0.0, 0.6f64.sin()];
-        let (lon, lat) = lon_lat(&rotated_z_axis(&q));
-        assert!(lon.is_finite() && (lat - FRAC_PI_2).abs() < 1e-12);
-        assert!(psi(&q).is_finite());
+    fn sections_are_finite_at_their_singular_pole() {
+        for section in [Section::North, Section::South] {
+            for s in [[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]] {
+                assert!(section.base(&s).iter().all(|c| c.is_finite()));
+            }
+        }
+        assert_eq!(Section::of_pixel(2, 8 << 4), Section::South);
+        assert_eq!(Section::of_pixel(2, (8 << 4) - 1), Section::North);
     }
 }

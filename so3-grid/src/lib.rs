@@ -3,7 +3,10 @@
 //! The grid of Yershova et al. (2010), "Generating uniform incremental grids on SO(3) using the
 //! Hopf fibration", as Implicit-PDF (Murphy et al., 2021) uses it: HEALPix pixel centres
 //! (nested scheme, nside = 2^L) for the direction of the rotated z-axis, times `6·2^L` bin
-//! centres of the rotation about it. Level L has `72·8^L` cells of equal volume `π²/72·8^L`
+//! centres of the rotation about it. The fibre angle is measured from the shortest-arc rotation
+//! to each direction (from +ẑ for the northern and equatorial HEALPix base pixels, from −ẑ for
+//! the southern ones), so every cell is compact (Euler-angle grids are not, at the poles) and
+//! a rotation is never far from the centre of the cell containing it. Level L has `72·8^L` cells of equal volume `π²/72·8^L`
 //! (level 2: 4,608; level 4: 294,912; level 5: 2,359,296).
 //!
 //! - [`Grid`]: the cell centres of one level, [`Grid::locate`] (the cell containing a

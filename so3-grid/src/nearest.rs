@@ -1,11 +1,11 @@
 //! Exact nearest grid rotation by branch and bound over the HEALPix hierarchy.
 //!
 //! Two facts make it exact (Hopf fibration, ψ about the rotated z-axis):
-//! - every grid rotation of pixel `p` lies on the fibre over `p`'s centre `c_p`, and the geodesic
+//! - every grid rotation of pixel `p` lies on the fibre `σ(c_p)·Rz(ψ)` over `p`'s centre `c_p`, and the geodesic
 //!   distance from a rotation R to any rotation of that fibre is at least the angle between
 //!   `R·ẑ` and `c_p` (a rotation by α moves a unit vector by at most α);
 //! - along one fibre `|⟨q, base ⊗ q_z(ψ)⟩| = |w cos ψ/2 + z sin ψ/2|` with `(w, z)` from
-//!   `base⁻¹ ⊗ q`: it peaks at `ψ* = 2·atan2(z, w)`, so the nearest ψ bin centre is the bin
+//!   `base⁻¹ ⊗ q` (`base = σ(c_p)`): it peaks at `ψ* = 2·atan2(z, w)`, so the nearest ψ bin centre is the bin
 //!   containing ψ*.
 //!
 //! Each coarser pixel stores a radius bounding the angle from its centre to every leaf centre

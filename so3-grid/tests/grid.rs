@@ -162,6 +162,28 @@ fn covering_radius_halves_per_level() {
 }
 
 #[test]
+fn cells_are_compact_and_shrink_by_half_per_level() {
+    // The farthest a rotation gets from the centre of the cell containing it (Euler-angle
+    // parametrisations fail this near the poles, where cells span 90° of rotation).
+    let queries = random_rotations(50_000, 8);
+    let worst: Vec<f64> = (1..=4u8)
+        .map(|level| {
+            let grid = Grid::new(level).unwrap();
+            let rotations = grid.rotations();
+            queries
+                .iter()
+                .map(|q| geodesic_distance(q, &rotations[grid.locate(q).unwrap() as usize]))
+                .fold(0.0, f64::max)
+                .to_degrees()
+        })
+        .collect();
+    assert!(worst[0] < 55.0, "{worst:?}");
+    for pair in worst.windows(2) {
+        assert!((1.7..2.3).contains(&(pair[0] / pair[1])), "{worst:?}");
+    }
+}
+
+#[test]
 fn bad_levels_and_rotations_are_errors() {
     assert!(matches!(
         Grid::new(MAX_LEVEL + 1),
