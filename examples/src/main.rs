@@ -1,12 +1,65 @@
-fn main() {
-    for level in 0..5u8 {
-        let g = so3_grid::Grid::new(level).unwrap();
-        let r = g.rotations();
-        let mut worst: f64 = 0.0;
-        for q in so3_grid::random_rotations(200000, 1) {
-            let c = g.locate(&q).unwrap();
-            worst = worst.max(so3_grid::geodesic_distance(&r[c as usize], &q).to_degrees());
+//! `ipdf`: pose-label-free learning of symmetric object orientations, from the command line.
+//! See `ipdf --help` and the README.
+use std::process::ExitCode;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+
+mod commands;
+
+/// Learn the full set of symmetric orientations of an object from RGB-D images and its mesh,
+/// without pose labels.
+#[derive(Debug, Parser)]
+#[command(name = "ipdf", version, about)]
+struct Cli {
+    /// Random seed (every command is deterministic given it).
+    #[arg(long, global = true, default_value_t = 0)]
+    seed: u64,
+    /// Worker threads (0: one per core).
+    #[arg(long, global = true, default_value_t = 0)]
+    threads: usize,
+    /// Print the command's result as one line of JSON.
+    #[arg(long, global = true)]
+    json: bool,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Write an equivolumetric SO(3) grid (HEALPix × Hopf) as .npy.
+    Grid(commands::grid::GridArgs),
+}
+
+fn run(cli: &Cli) -> Result<serde_json::Value> {
+    match &cli.command {
+        Command::Grid(args) => commands::grid::run(args),
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(cli.threads)
+        .build();
+    let result = pool
+        .map_err(anyhow::Error::from)
+        .and_then(|pool| pool.install(|| run(&cli)));
+    match result {
+        Ok(summary) => {
+            if cli.json {
+                println!("{summary}");
+            } else {
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&summary).unwrap_or_default()
+                );
+            }
+            ExitCode::SUCCESS
         }
-        println!("{level} {worst}");
+        Err(error) => {
+            eprintln!("error: {error:#}");
+            ExitCode::FAILURE
+        }
     }
 }

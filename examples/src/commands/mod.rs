@@ -1,0 +1,2 @@
+//! One module per `ipdf` subcommand.
+pub mod grid;
