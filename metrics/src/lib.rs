@@ -44,6 +44,6 @@ mod symmetry;
 
 pub use distribution::{Distribution, GridCell, MASS_SUM_TOLERANCE};
 pub use error::MetricsError;
-pub use nearest::nearest_distances;
+pub use nearest::{REFINE_BELOW, nearest_distances};
 pub use score::{RECALL_REFERENCE_LEVEL, RECALL_THRESHOLD, llh, maad, recall_maad};
 pub use symmetry::{CONTINUOUS_STEPS, ContinuousSymmetry, SymmetryGroup};

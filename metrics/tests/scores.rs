@@ -61,7 +61,8 @@ proptest! {
         let brute: f64 = dist.rotations().iter().zip(dist.masses()).map(|(r, m)| {
             m * gt.iter().map(|g| geodesic_distance(r, g)).fold(f64::INFINITY, f64::min)
         }).sum();
-        prop_assert!((maad(&dist, &gt).unwrap() - brute.to_degrees()).abs() < 1e-9);
+        // The f32 search is within 0.01° (exact in f64 below 1.7°).
+        prop_assert!((maad(&dist, &gt).unwrap() - brute.to_degrees()).abs() < 1e-2);
     }
 }
 

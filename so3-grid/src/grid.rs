@@ -90,9 +90,11 @@ impl Grid {
     /// Generated in parallel on the current rayon pool; a level-5 grid is 2.4M rotations
     /// (75 MB), so prefer [`Grid::fill_rotations`] into a reused buffer in loops.
     pub fn rotations(&self) -> Vec<UnitQuaternion<f64>> {
-        let mut out = vec![UnitQuaternion::identity(); self.len() as usize];
-        self.fill_rotations(&mut out);
-        out
+        // An indexed parallel collect writes (and page-faults) the fresh buffer on all threads.
+        (0..self.len())
+            .into_par_iter()
+            .map(|index| to_unit(self.centre(index)))
+            .collect()
     }
 
     /// Writes all cell centres (as [`Grid::rotations`]) into `out`, whose length must be

@@ -1,0 +1,38 @@
+# The README's two commands: `make demo` and `make test`. Both install what is missing first.
+SHELL := /bin/bash
+CARGO ?= cargo
+LIBTORCH_STAMP := .libtorch/.complete-2.11.0
+BENCH_VENV := .venv-bench
+
+.PHONY: setup demo test bench bench-python lint
+
+# CPU libtorch 2.11.0 for tch (skipped when LIBTORCH is set in the environment).
+setup: $(if $(LIBTORCH),,$(LIBTORCH_STAMP))
+$(LIBTORCH_STAMP):
+	scripts/setup-libtorch.sh
+
+demo: setup
+	$(CARGO) build --release -p examples --bin ipdf
+	mkdir -p runs/demo
+	target/release/ipdf grid --level 4 --out runs/demo/grid_level4.npy --json
+	@echo "Wrote runs/demo/grid_level4.npy (294,912 rotations, N×4 w,x,y,z float32)."
+
+test: setup
+	$(CARGO) test --workspace --all-targets
+	$(CARGO) test --workspace --doc
+
+lint: setup
+	$(CARGO) fmt --all --check
+	$(CARGO) clippy --workspace --all-targets -- -D warnings
+
+bench: setup
+	$(CARGO) bench -p benches
+
+# The Python baselines the benches are compared with (healpy + numpy), measured once.
+$(BENCH_VENV)/.ready:
+	python3 -m venv $(BENCH_VENV)
+	$(BENCH_VENV)/bin/pip install --quiet healpy numpy
+	touch $@
+
+bench-python: $(BENCH_VENV)/.ready
+	$(BENCH_VENV)/bin/python benches/python/healpy_grid.py
