@@ -25,9 +25,9 @@ pub fn write_rotations(
     format: RotationFormat,
 ) -> Result<()> {
     let n = rotations.len() as u64;
-    let (shape, values): (Vec<u64>, Box<dyn Fn(&UnitQuaternion<f64>) -> Vec<f64>>) = match format {
-        RotationFormat::Quat => (vec![n, 4], Box::new(|q| rotation_to_wxyz(q).to_vec())),
-        RotationFormat::Matrix => (vec![n, 3, 3], Box::new(|q| rotation_to_matrix(q).to_vec())),
+    let shape = match format {
+        RotationFormat::Quat => vec![n, 4],
+        RotationFormat::Matrix => vec![n, 3, 3],
     };
     write_atomically(path, |out| {
         let mut writer = npyz::WriteOptions::<f32>::new()
@@ -36,7 +36,10 @@ pub fn write_rotations(
             .writer(out)
             .begin_nd()?;
         for q in rotations {
-            writer.extend(values(q).into_iter().map(|v| v as f32))?;
+            match format {
+                RotationFormat::Quat => writer.extend(rotation_to_wxyz(q).map(|v| v as f32))?,
+                RotationFormat::Matrix => writer.extend(rotation_to_matrix(q).map(|v| v as f32))?,
+            }
         }
         writer.finish()?;
         Ok(())
