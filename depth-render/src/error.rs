@@ -1,0 +1,65 @@
+/// Errors of the `depth-render` crate.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum RenderError {
+    /// A mesh without vertices or triangles.
+    #[error("mesh is empty ({vertices} vertices, {triangles} triangles)")]
+    EmptyMesh {
+        /// Number of vertices.
+        vertices: usize,
+        /// Number of triangles.
+        triangles: usize,
+    },
+    /// A vertex coordinate that is NaN or infinite.
+    #[error("vertex {vertex} is not finite")]
+    NonFiniteVertex {
+        /// Index of the vertex.
+        vertex: usize,
+    },
+    /// A triangle referring to a vertex that does not exist.
+    #[error("triangle {triangle} refers to vertex {index}, but there are {vertices} vertices")]
+    IndexOutOfRange {
+        /// Index of the triangle.
+        triangle: usize,
+        /// The offending vertex index.
+        index: u32,
+        /// Number of vertices.
+        vertices: usize,
+    },
+    /// A triangle of zero area (repeated or collinear vertices).
+    #[error("triangle {triangle} has zero area")]
+    DegenerateTriangle {
+        /// Index of the triangle.
+        triangle: usize,
+    },
+    /// Camera intrinsics that cannot image anything.
+    #[error("invalid camera: {reason}")]
+    InvalidCamera {
+        /// What is wrong.
+        reason: String,
+    },
+    /// A primitive's dimension that is not a positive finite number.
+    #[error("invalid primitive dimension {name} = {value}")]
+    InvalidDimension {
+        /// Name of the parameter.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+    },
+    /// An instance refers to a mesh the scene does not have.
+    #[error("instance {instance} refers to mesh {mesh}, but the scene has {meshes}")]
+    UnknownMesh {
+        /// Position of the instance.
+        instance: usize,
+        /// The mesh index it names.
+        mesh: usize,
+        /// Number of meshes in the scene.
+        meshes: usize,
+    },
+    /// A pose with a non-finite rotation or translation.
+    #[error("pose of instance {instance} is not finite")]
+    NonFinitePose {
+        /// Position of the instance.
+        instance: usize,
+    },
+}

@@ -1,0 +1,213 @@
+//! Closed, outward-wound primitive meshes with exact dimensions, centred at the origin
+//! (metres). Axes of revolution are the model z-axis.
+use nalgebra::{Point3, Vector3};
+
+use crate::{RenderError, TriangleMesh};
+
+/// A box with edge lengths `extents` along x, y, z.
+pub fn cuboid(extents: [f64; 3]) -> Result<TriangleMesh, RenderError> {
+    for (name, value) in ["extent_x", "extent_y", "extent_z"]
+        .into_iter()
+        .zip(extents)
+    {
+        check_dimension(name, value)?;
+    }
+    // Vertex i has coordinates (bit 0 → x, bit 1 → y, bit 2 → z) of the low/high corner.
+    let positions = (0..8)
+        .map(|i| {
+            Point3::from(std::array::from_fn(|axis| {
+                ((i >> axis & 1) as f64 - 0.5) * extents[axis]
+            }))
+        })
+        .collect();
+    let quads = [
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+    ];
+    mesh(
+        positions,
+        quads
+            .iter()
+            .flat_map(|&[a, b, c, d]| [[a, b, c], [a, c, d]])
+            .collect(),
+    )
+}
+
+/// A closed cylinder (a can): `radius`, `height` along z, `segments` around (≥ 3).
+pub fn cylinder(radius: f64, height: f64, segments: u32) -> Result<TriangleMesh, RenderError> {
+    check_dimension("radius", radius)?;
+    check_dimension("height", height)?;
+    if segments < 3 {
+        return Err(RenderError::InvalidDimension {
+            name: "segments",
+            value: f64::from(segments),
+        });
+    }
+    let n = segments;
+    let mut positions = Vec::with_capacity(2 * n as usize + 2);
+    for z in [-0.5 * height, 0.5 * height] {
+        for i in 0..n {
+            let (s, c) = (std::f64::consts::TAU * f64::from(i) / f64::from(n)).sin_cos();
+            positions.push(Point3::new(radius * c, radius * s, z));
+        }
+    }
+    let (bottom_centre, top_centre) = (2 * n, 2 * n + 1);
+    positions.push(Point3::new(0.0, 0.0, -0.5 * height));
+    positions.push(Point3::new(0.0, 0.0, 0.5 * height));
+    let mut triangles = Vec::with_capacity(4 * n as usize);
+    for i in 0..n {
+        let j = (i + 1) % n;
+        let (b0, b1, t0, t1) = (i, j, n + i, n + j);
+        triangles.extend([
+            [b0, b1, t1],
+            [b0, t1, t0],
+            [top_centre, t0, t1],
+            [bottom_centre, b1, b0],
+        ]);
+    }
+    mesh(positions, triangles)
+}
+
+/// A one-sided `width` × `depth` rectangle in the z = 0 plane, facing +z (a tabletop).
+pub fn plane(width: f64, depth: f64) -> Result<TriangleMesh, RenderError> {
+    check_dimension("width", width)?;
+    check_dimension("depth", depth)?;
+    let (x, y) = (0.5 * width, 0.5 * depth);
+    let positions = vec![
+        Point3::new(-x, -y, 0.0),
+        Point3::new(x, -y, 0.0),
+        Point3::new(x, y, 0.0),
+        Point3::new(-x, y, 0.0),
+    ];
+    mesh(positions, vec![[0, 1, 2], [0, 2, 3]])
+}
+
+/// A regular tetrahedron with vertices at distance `circumradius` from its centre.
+pub fn tetrahedron(circumradius: f64) -> Result<TriangleMesh, RenderError> {
+    let corners = [
+        [1.0, 1.0, 1.0],
+        [1.0, -1.0, -1.0],
+        [-1.0, 1.0, -1.0],
+        [-1.0, -1.0, 1.0],
+    ];
+    convex_hull_of_regular(&corners, circumradius, 4)
+}
+
+/// A regular octahedron with vertices at distance `circumradius` on the axes.
+pub fn octahedron(circumradius: f64) -> Result<TriangleMesh, RenderError> {
+    let corners = [
+        [1.0, 0.0, 0.0],
+        [-1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [0.0, 0.0, -1.0],
+    ];
+    convex_hull_of_regular(&corners, circumradius, 8)
+}
+
+/// A regular icosahedron with vertices at distance `circumradius` from its centre.
+pub fn icosahedron(circumradius: f64) -> Result<TriangleMesh, RenderError> {
+    convex_hull_of_regular(&icosahedron_corners(), circumradius, 20)
+}
+
+/// A sphere of `radius`: an icosahedron subdivided `subdivisions` times (each splits every
+/// triangle into 4) with vertices on the sphere (`20·4^subdivisions` triangles).
+pub fn sphere(radius: f64, subdivisions: u32) -> Result<TriangleMesh, RenderError> {
+    check_dimension("radius", radius)?;
+    let mut vertices: Vec<Vector3<f64>> = icosahedron_corners()
+        .iter()
+        .map(|c| Vector3::from(*c).normalize())
+        .collect();
+    let ico = icosahedron(1.0)?;
+    let mut faces: Vec<[u32; 3]> = ico.triangles().to_vec();
+    for _ in 0..subdivisions.min(8) {
+        let mut midpoints = std::collections::HashMap::new();
+        let mut midpoint = |a: u32, b: u32, vertices: &mut Vec<Vector3<f64>>| {
+            *midpoints.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                vertices.push((vertices[a as usize] + vertices[b as usize]).normalize());
+                (vertices.len() - 1) as u32
+            })
+        };
+        faces = faces
+            .iter()
+            .flat_map(|&[a, b, c]| {
+                let (ab, bc, ca) = (
+                    midpoint(a, b, &mut vertices),
+                    midpoint(b, c, &mut vertices),
+                    midpoint(c, a, &mut vertices),
+                );
+                [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]
+            })
+            .collect();
+    }
+    mesh(
+        vertices.iter().map(|v| Point3::from(v * radius)).collect(),
+        faces,
+    )
+}
+
+fn icosahedron_corners() -> Vec<[f64; 3]> {
+    let phi = 0.5 * (1.0 + 5f64.sqrt());
+    let mut corners = Vec::with_capacity(12);
+    for (a, b) in [(1.0, phi), (1.0, -phi), (-1.0, phi), (-1.0, -phi)] {
+        corners.extend([[0.0, a, b], [a, b, 0.0], [b, 0.0, a]]);
+    }
+    corners
+}
+
+/// The faces of a regular polyhedron whose corners (any scale) are given: the vertex triples
+/// whose pairwise distances equal the shortest edge, wound outwards.
+fn convex_hull_of_regular(
+    corners: &[[f64; 3]],
+    circumradius: f64,
+    faces: usize,
+) -> Result<TriangleMesh, RenderError> {
+    check_dimension("circumradius", circumradius)?;
+    let points: Vec<Vector3<f64>> = corners
+        .iter()
+        .map(|c| Vector3::from(*c).normalize() * circumradius)
+        .collect();
+    let edge = (1..points.len())
+        .map(|j| (points[j] - points[0]).norm())
+        .fold(f64::INFINITY, f64::min);
+    let is_edge =
+        |i: usize, j: usize| ((points[i] - points[j]).norm() - edge).abs() < 1e-9 * circumradius;
+    let n = points.len() as u32;
+    let mut triangles = Vec::with_capacity(faces);
+    for a in 0..n {
+        for b in a + 1..n {
+            for c in b + 1..n {
+                let (i, j, k) = (a as usize, b as usize, c as usize);
+                if is_edge(i, j) && is_edge(j, k) && is_edge(i, k) {
+                    let normal = (points[j] - points[i]).cross(&(points[k] - points[i]));
+                    let outward = normal.dot(&(points[i] + points[j] + points[k])) > 0.0;
+                    triangles.push(if outward { [a, b, c] } else { [a, c, b] });
+                }
+            }
+        }
+    }
+    debug_assert_eq!(triangles.len(), faces);
+    mesh(points.iter().map(|p| Point3::from(*p)).collect(), triangles)
+}
+
+fn mesh(
+    positions: Vec<Point3<f64>>,
+    triangles: Vec<[u32; 3]>,
+) -> Result<TriangleMesh, RenderError> {
+    TriangleMesh::new(
+        positions.iter().map(|p| p.cast::<f32>()).collect(),
+        triangles,
+    )
+}
+
+fn check_dimension(name: &'static str, value: f64) -> Result<(), RenderError> {
+    if !(value.is_finite() && value > 0.0) {
+        return Err(RenderError::InvalidDimension { name, value });
+    }
+    Ok(())
+}
