@@ -1,3 +1,5 @@
+use std::path::PathBuf;
+
 /// Errors of the `depth-render` crate.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
@@ -31,6 +33,16 @@ pub enum RenderError {
     DegenerateTriangle {
         /// Index of the triangle.
         triangle: usize,
+    },
+    /// A mesh file that cannot be read, or whose content is invalid.
+    #[error("{path}: {field}: {reason}")]
+    MeshFile {
+        /// The file.
+        path: PathBuf,
+        /// The element or field at fault, e.g. `vertex[3].x` or `face[7]`.
+        field: String,
+        /// What is wrong.
+        reason: String,
     },
     /// Camera intrinsics that cannot image anything.
     #[error("invalid camera: {reason}")]

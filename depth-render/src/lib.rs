@@ -1,7 +1,8 @@
 //! CPU ray casting of triangle meshes into depth images and instance masks.
 //!
-//! - [`TriangleMesh`]: validated vertices and faces (metres, model frame); [`primitives`]
-//!   builds closed, outward-wound shapes with exact dimensions.
+//! - [`TriangleMesh`]: validated vertices and faces (metres, model frame); [`load_mesh`]
+//!   reads PLY and OBJ files; [`primitives`] builds closed, outward-wound shapes with exact
+//!   dimensions.
 //! - [`PinholeCamera`]: OpenCV intrinsics; depth is z-depth.
 //! - [`Scene`]: one obvhs compressed-wide BVH per mesh, instanced by model→camera poses and
 //!   rendered row-parallel into a [`Rendering`] of any pixel [`Window`].
@@ -24,10 +25,12 @@
 mod camera;
 mod error;
 mod mesh;
+mod mesh_io;
 pub mod primitives;
 mod render;
 
 pub use camera::PinholeCamera;
 pub use error::RenderError;
 pub use mesh::TriangleMesh;
+pub use mesh_io::load_mesh;
 pub use render::{Instance, Rendering, Scene, Window};

@@ -1,0 +1,186 @@
+//! PLY and OBJ loading, including malformed files: every error names the file and the field.
+use std::path::{Path, PathBuf};
+
+use depth_render::{RenderError, load_mesh};
+
+const ASCII_PLY: &str = "ply
+format ascii 1.0
+comment a unit square (as a quad) and a triangle, in millimetres
+element vertex 5
+property float x
+property float y
+property float z
+property uchar red
+property uchar green
+property uchar blue
+element face 2
+property list uchar int vertex_indices
+end_header
+0 0 0 255 0 0
+1000 0 0 255 0 0
+1000 1000 0 255 0 0
+0 1000 0 255 0 0
+0 0 1000 0 0 255
+4 0 1 2 3
+3 0 4 1
+";
+
+fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
+    let path = dir.join(name);
+    std::fs::write(&path, bytes).unwrap();
+    path
+}
+
+fn binary_ply(faces: &[&[u32]], truncate: usize) -> Vec<u8> {
+    let vertices: [[f32; 3]; 4] = [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 1.0, 0.5],
+    ];
+    let mut bytes = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\nproperty float y\n\
+         property float z\nelement face {}\nproperty list uchar uint vertex_indices\nend_header\n",
+        faces.len()
+    )
+    .into_bytes();
+    for v in vertices {
+        v.iter().for_each(|c| bytes.extend(c.to_le_bytes()));
+    }
+    for face in faces {
+        bytes.push(face.len() as u8);
+        face.iter().for_each(|i| bytes.extend(i.to_le_bytes()));
+    }
+    bytes.truncate(bytes.len() - truncate);
+    bytes
+}
+
+/// A binary PLY whose vertex `index` has x = NaN.
+fn with_nan_vertex(index: usize) -> Vec<u8> {
+    let mut bytes = binary_ply(&[&[0, 1, 2]], 0);
+    let body = bytes
+        .windows(11)
+        .position(|w| w == b"end_header\n")
+        .unwrap()
+        + 11;
+    bytes[body + 12 * index..body + 12 * index + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+    bytes
+}
+
+#[test]
+fn ascii_ply_in_millimetres_is_scaled_and_triangulated() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = load_mesh(
+        &write(dir.path(), "obj_000001.ply", ASCII_PLY.as_bytes()),
+        0.001,
+    )
+    .unwrap();
+    assert_eq!(mesh.triangles().len(), 3);
+    assert_eq!(mesh.positions()[2].x, 1.0);
+    assert!((mesh.surface_area() - 1.5).abs() < 1e-6);
+}
+
+#[test]
+fn binary_ply_and_obj_load_the_same_geometry() {
+    let dir = tempfile::tempdir().unwrap();
+    let ply = load_mesh(
+        &write(dir.path(), "m.ply", &binary_ply(&[&[0, 1, 2, 3]], 0)),
+        1.0,
+    )
+    .unwrap();
+    let obj_text = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0.5\nf 1 2 3 4\n";
+    let obj = load_mesh(&write(dir.path(), "m.obj", obj_text.as_bytes()), 1.0).unwrap();
+    assert_eq!(ply.triangles(), obj.triangles());
+    assert_eq!(ply.positions(), obj.positions());
+    assert_eq!(ply.triangles(), &[[0, 1, 2], [0, 2, 3]]);
+}
+
+#[test]
+fn malformed_files_name_the_file_and_the_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases: Vec<(PathBuf, &str)> = vec![
+        (
+            write(dir.path(), "truncated.ply", &binary_ply(&[&[0, 1, 2]], 3)),
+            "file",
+        ),
+        (
+            write(
+                dir.path(),
+                "range.ply",
+                &binary_ply(&[&[0, 1, 2], &[0, 2, 7]], 0),
+            ),
+            "face[1]",
+        ),
+        (
+            write(
+                dir.path(),
+                "flat.ply",
+                &binary_ply(&[&[0, 1, 2], &[0, 1, 1]], 0),
+            ),
+            "face[1]",
+        ),
+        (
+            write(dir.path(), "nan.ply", &with_nan_vertex(2)),
+            "vertex[2]",
+        ),
+        (
+            write(
+                dir.path(),
+                "noface.ply",
+                ASCII_PLY
+                    .replace("element face 2", "element edge 2")
+                    .as_bytes(),
+            ),
+            "face",
+        ),
+        (
+            write(
+                dir.path(),
+                "noy.ply",
+                ASCII_PLY
+                    .replace("property float y", "property float w")
+                    .as_bytes(),
+            ),
+            "vertex[0].y",
+        ),
+        (
+            write(dir.path(), "garbage.ply", b"not a ply at all"),
+            "file",
+        ),
+        // tobj rejects out-of-range indices itself ("face vertex index out of bounds").
+        (
+            write(dir.path(), "bad.obj", b"v 0 0 0\nv 1 0 0\nf 1 2 9\n"),
+            "file",
+        ),
+        (
+            write(
+                dir.path(),
+                "flat.obj",
+                b"v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n",
+            ),
+            "face[0]",
+        ),
+        (write(dir.path(), "mesh.stl", b"solid"), "extension"),
+        (dir.path().join("missing.ply"), "file"),
+    ];
+    for (path, field) in cases {
+        match load_mesh(&path, 1.0) {
+            Err(RenderError::MeshFile {
+                path: p,
+                field: f,
+                reason,
+            }) => {
+                assert_eq!(p, path);
+                assert_eq!(f, field, "{}: {reason}", path.display());
+            }
+            other => panic!(
+                "{}: expected an error on {field}, got {other:?}",
+                path.display()
+            ),
+        }
+    }
+    let ok = write(dir.path(), "ok.ply", ASCII_PLY.as_bytes());
+    assert!(
+        matches!(load_mesh(&ok, 0.0), Err(RenderError::MeshFile { field, .. }) if field == "scale")
+    );
+}
