@@ -6,6 +6,8 @@
 //! - [`PinholeCamera`]: OpenCV intrinsics; depth is z-depth.
 //! - [`Scene`]: one obvhs compressed-wide BVH per mesh, instanced by model→camera poses and
 //!   rendered row-parallel into a [`Rendering`] of any pixel [`Window`].
+//! - [`unproject`] depth back to points, [`depth_discrepancy`] (the render-and-compare score),
+//!   [`DepthNoise`] (a sensor model), [`sample_surface`] (area-weighted points and normals).
 //!
 //! ```
 //! use depth_render::{primitives, Instance, PinholeCamera, Scene, Window};
@@ -23,14 +25,20 @@
 //! ```
 
 mod camera;
+mod compare;
 mod error;
 mod mesh;
 mod mesh_io;
+mod noise;
 pub mod primitives;
 mod render;
+mod sampling;
 
 pub use camera::PinholeCamera;
+pub use compare::{depth_discrepancy, unproject};
 pub use error::RenderError;
 pub use mesh::TriangleMesh;
 pub use mesh_io::load_mesh;
+pub use noise::DepthNoise;
 pub use render::{Instance, Rendering, Scene, Window};
+pub use sampling::sample_surface;

@@ -1,0 +1,162 @@
+//! Unprojection, the render-and-compare score, the noise model and surface sampling.
+use depth_render::{
+    DepthNoise, Instance, PinholeCamera, Scene, Window, depth_discrepancy, primitives,
+    sample_surface, unproject,
+};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+
+fn camera() -> PinholeCamera {
+    PinholeCamera::new(600.0, 600.0, 80.0, 60.0, 160, 120).unwrap()
+}
+
+#[test]
+fn unprojected_renders_lie_on_the_surface() {
+    let camera = camera();
+    let scene = Scene::new(&[primitives::cuboid([0.08, 0.05, 0.03]).unwrap()]);
+    let pose = Isometry3::from_parts(
+        Translation3::new(0.01, -0.01, 0.6),
+        UnitQuaternion::from_euler_angles(0.4, -0.7, 0.2),
+    );
+    let window = Window {
+        u0: 10,
+        v0: 5,
+        u1: 150,
+        v1: 115,
+    };
+    let out = scene
+        .render(
+            &camera,
+            &[Instance {
+                mesh: 0,
+                camera_from_model: pose,
+            }],
+            window,
+        )
+        .unwrap();
+    let points = unproject(&camera, window, &out.depth, None);
+    assert!(points.len() > 1000);
+    let half = [0.04f64, 0.025, 0.015];
+    for p in &points {
+        // In the box frame a surface point has one coordinate at ±half and the others inside.
+        let local = pose.inverse() * p.cast::<f64>();
+        let gaps: Vec<f64> = (0..3).map(|i| (local[i].abs() - half[i]).abs()).collect();
+        assert!(
+            gaps.iter().cloned().fold(f64::INFINITY, f64::min) < 1e-5,
+            "{local:?}"
+        );
+        assert!((0..3).all(|i| local[i].abs() <= half[i] + 1e-5));
+    }
+    // A mask keeps only the masked pixels.
+    let mask: Vec<bool> = (0..out.depth.len()).map(|i| i % 2 == 0).collect();
+    let masked = unproject(&camera, window, &out.depth, Some(&mask));
+    let expected = out.depth.iter().step_by(2).filter(|&&d| d > 0.0).count();
+    assert_eq!(masked.len(), expected);
+}
+
+#[test]
+fn the_true_pose_scores_best_and_noise_costs_about_its_mean_absolute_value() {
+    let camera = camera();
+    let scene = Scene::new(&[primitives::cylinder(0.04, 0.1, 48).unwrap()]);
+    let pose = Isometry3::from_parts(
+        Translation3::new(0.0, 0.0, 0.7),
+        UnitQuaternion::from_euler_angles(1.0, 0.3, 0.0),
+    );
+    let window = Window::full(&camera);
+    let render = |pose: Isometry3<f64>| {
+        scene
+            .render(
+                &camera,
+                &[Instance {
+                    mesh: 0,
+                    camera_from_model: pose,
+                }],
+                window,
+            )
+            .unwrap()
+            .depth
+    };
+    let observed = render(pose);
+    let noise = DepthNoise {
+        quantisation: 0.0,
+        edge_dropout: 0.0,
+        ..Default::default()
+    };
+    let noisy = noise.apply(&observed, camera.width as usize, 5);
+    let clamp = 0.02;
+    let at_truth = depth_discrepancy(&noisy, &observed, clamp).unwrap();
+    let expected = noise.sigma(0.7) * (2.0 / std::f32::consts::PI).sqrt(); // E|N(0, σ)|
+    assert!(
+        (at_truth - expected).abs() < 0.3 * expected,
+        "{at_truth} vs {expected}"
+    );
+    let moved = Isometry3::from_parts(Translation3::new(0.005, 0.0, 0.7), pose.rotation);
+    let turned = Isometry3::from_parts(
+        pose.translation,
+        UnitQuaternion::from_euler_angles(1.2, 0.3, 0.0),
+    );
+    for wrong in [moved, turned] {
+        assert!(depth_discrepancy(&noisy, &render(wrong), clamp).unwrap() > 2.0 * at_truth);
+    }
+}
+
+#[test]
+fn noise_is_seeded_quantised_and_drops_only_edges() {
+    let (width, height) = (64usize, 48usize);
+    // A step: left half at 0.5 m, right half at 0.8 m, one row of no readings.
+    let mut depth: Vec<f32> = (0..width * height)
+        .map(|i| if i % width < width / 2 { 0.5 } else { 0.8 })
+        .collect();
+    depth[..width].iter_mut().for_each(|d| *d = 0.0);
+    let noise = DepthNoise {
+        edge_dropout: 1.0,
+        ..Default::default()
+    };
+    let a = noise.apply(&depth, width, 1);
+    let one_thread = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    assert_eq!(a, one_thread.install(|| noise.apply(&depth, width, 1)));
+    assert_ne!(a, noise.apply(&depth, width, 2));
+    for (i, (&clean, &noisy)) in depth.iter().zip(&a).enumerate() {
+        let u = i % width;
+        if clean == 0.0 {
+            assert_eq!(noisy, 0.0);
+        } else if u == width / 2 - 1 || u == width / 2 {
+            assert_eq!(noisy, 0.0, "edge pixel {i} kept");
+        } else if i >= 2 * width {
+            assert!(noisy > 0.0 && (noisy - clean).abs() < 0.02);
+            let steps = noisy / 0.001;
+            assert!(
+                (steps - steps.round()).abs() < 1e-2,
+                "{noisy} not on a 1 mm step"
+            );
+        }
+    }
+}
+
+#[test]
+fn surface_samples_are_uniform_over_area_and_on_the_surface() {
+    let mesh = primitives::cuboid([0.4, 0.1, 0.1]).unwrap();
+    let (points, normals) = sample_surface(&mesh, 20_000, 3);
+    assert_eq!(points.len(), 20_000);
+    assert_eq!(
+        (points.clone(), normals.clone()),
+        sample_surface(&mesh, 20_000, 3)
+    );
+    let (mut on_big_faces, half) = (0usize, [0.2f32, 0.05, 0.05]);
+    for (p, n) in points.iter().zip(&normals) {
+        let face = (0..3)
+            .find(|&i| (p[i].abs() - half[i]).abs() < 1e-6)
+            .expect("on a face");
+        assert!((n.norm() - 1.0).abs() < 1e-5);
+        assert!(
+            (n[face].abs() - 1.0).abs() < 1e-5 && n[face] * p[face] > 0.0,
+            "normal points outwards"
+        );
+        on_big_faces += usize::from(face != 0);
+    }
+    // The four 0.4 × 0.1 faces hold 0.16 of the 0.18 m² total.
+    let fraction = on_big_faces as f64 / points.len() as f64;
+    assert!((fraction - 0.16 / 0.18).abs() < 0.01, "{fraction}");
+}
