@@ -26,10 +26,7 @@ fn rendering(c: &mut Criterion) {
         Translation3::new(0.0, 0.0, 0.7),
         UnitQuaternion::from_euler_angles(0.2, 0.4, 0.1),
     );
-    let instances = [Instance {
-        mesh: 0,
-        camera_from_model: pose,
-    }];
+    let instances = [Instance::new(0, pose)];
     group.throughput(Throughput::Elements(640 * 480));
     group.bench_function("depth/640x480_20k_triangles", |b| {
         b.iter(|| {

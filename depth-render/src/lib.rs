@@ -17,7 +17,7 @@
 //! let camera = PinholeCamera::new(500.0, 500.0, 32.0, 24.0, 64, 48)?;
 //! let scene = Scene::new(&[cube]);
 //! let pose = Isometry3::translation(0.0, 0.0, 0.5);
-//! let out = scene.render(&camera, &[Instance { mesh: 0, camera_from_model: pose }], Window::full(&camera))?;
+//! let out = scene.render(&camera, &[Instance::new(0, pose)], Window::full(&camera))?;
 //! // The principal ray meets the cube's front face at z = 0.5 − 0.05.
 //! let centre = (24 * 64 + 32) as usize;
 //! assert!((out.depth[centre] - 0.45).abs() < 1e-6);

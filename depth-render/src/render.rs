@@ -54,6 +54,16 @@ pub struct Instance {
     pub camera_from_model: Isometry3<f64>,
 }
 
+impl Instance {
+    /// Mesh `mesh` of the scene at the model→camera pose `camera_from_model`.
+    pub fn new(mesh: usize, camera_from_model: Isometry3<f64>) -> Self {
+        Self {
+            mesh,
+            camera_from_model,
+        }
+    }
+}
+
 /// A rendered window: z-depth in metres (0 where no surface was hit) and the index of the
 /// instance seen at each pixel (`None` for background), row-major.
 #[derive(Debug, Clone, PartialEq)]

@@ -24,14 +24,7 @@ fn unprojected_renders_lie_on_the_surface() {
         v1: 115,
     };
     let out = scene
-        .render(
-            &camera,
-            &[Instance {
-                mesh: 0,
-                camera_from_model: pose,
-            }],
-            window,
-        )
+        .render(&camera, &[Instance::new(0, pose)], window)
         .unwrap();
     let points = unproject(&camera, window, &out.depth, None);
     assert!(points.len() > 1000);
@@ -64,14 +57,7 @@ fn the_true_pose_scores_best_and_noise_costs_about_its_mean_absolute_value() {
     let window = Window::full(&camera);
     let render = |pose: Isometry3<f64>| {
         scene
-            .render(
-                &camera,
-                &[Instance {
-                    mesh: 0,
-                    camera_from_model: pose,
-                }],
-                window,
-            )
+            .render(&camera, &[Instance::new(0, pose)], window)
             .unwrap()
             .depth
     };

@@ -70,14 +70,7 @@ fn a_face_on_cube_renders_its_exact_silhouette_and_depth() {
     let scene = Scene::new(&[primitives::cuboid([0.02, 0.02, 0.02]).unwrap()]);
     let pose = Isometry3::translation(0.0, 0.0, 0.5);
     let out = scene
-        .render(
-            &camera,
-            &[Instance {
-                mesh: 0,
-                camera_from_model: pose,
-            }],
-            Window::full(&camera),
-        )
+        .render(&camera, &[Instance::new(0, pose)], Window::full(&camera))
         .unwrap();
     let mut hits = 0;
     for v in 0..camera.height {
@@ -107,10 +100,7 @@ fn a_window_renders_the_same_pixels_as_the_full_image() {
         Translation3::new(0.01, -0.005, 0.4),
         UnitQuaternion::from_euler_angles(0.3, 0.5, 0.7),
     );
-    let instances = [Instance {
-        mesh: 0,
-        camera_from_model: pose,
-    }];
+    let instances = [Instance::new(0, pose)];
     let full = scene
         .render(&camera, &instances, Window::full(&camera))
         .unwrap();
@@ -185,7 +175,7 @@ proptest! {
         // The plane faces the camera: its +z normal turned towards −z of the camera.
         let rotation = UnitQuaternion::from_euler_angles(std::f64::consts::PI + roll, pitch, 0.0);
         let pose = Isometry3::from_parts(Translation3::new(0.0, 0.0, distance), rotation);
-        let out = scene.render(&camera, &[Instance { mesh: 0, camera_from_model: pose }], Window::full(&camera)).unwrap();
+        let out = scene.render(&camera, &[Instance::new(0, pose)], Window::full(&camera)).unwrap();
         let normal = rotation * Vector3::z();
         let offset = normal.dot(&pose.translation.vector);
         for v in 0..camera.height {
@@ -261,10 +251,7 @@ fn bad_meshes_cameras_and_instances_are_typed_errors() {
     ));
     let scene = Scene::new(&[TriangleMesh::new(ok, vec![[0, 1, 2]]).unwrap()]);
     let camera = camera();
-    let stray = [Instance {
-        mesh: 1,
-        camera_from_model: Isometry3::identity(),
-    }];
+    let stray = [Instance::new(1, Isometry3::identity())];
     assert!(matches!(
         scene.render(&camera, &stray, Window::full(&camera)),
         Err(RenderError::UnknownMesh { .. })
