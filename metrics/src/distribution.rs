@@ -47,26 +47,24 @@ impl Distribution {
                 masses: masses.len(),
             });
         }
-        let masses = normalised(masses)?;
-        let level = grid.level();
-        let cells = (0..grid.len())
-            .map(|index| GridCell { level, index })
-            .collect();
-        Ok(Self {
-            cells,
-            rotations: grid.rotations(),
-            masses,
-            lookup: Lookup::Dense(level),
-        })
+        Ok(Self::on_grid(grid, normalised(masses)?))
     }
 
     /// The uniform distribution on `grid` (density `1/π²` everywhere).
     pub fn uniform(grid: &Grid) -> Self {
-        let (level, n) = (grid.level(), grid.len());
+        let n = grid.len() as usize;
+        Self::on_grid(grid, vec![1.0 / n as f64; n])
+    }
+
+    /// All cells of `grid` with masses already checked to be one per cell and normalised.
+    fn on_grid(grid: &Grid, masses: Vec<f64>) -> Self {
+        let level = grid.level();
         Self {
-            cells: (0..n).map(|index| GridCell { level, index }).collect(),
+            cells: (0..grid.len())
+                .map(|index| GridCell { level, index })
+                .collect(),
             rotations: grid.rotations(),
-            masses: vec![1.0 / n as f64; n as usize],
+            masses,
             lookup: Lookup::Dense(level),
         }
     }
