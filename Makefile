@@ -30,11 +30,20 @@ bench: setup
 	# 75 MB of a level-5 grid (see README, "Performance notes").
 	GLIBC_TUNABLES=glibc.malloc.hugetlb=1 $(CARGO) bench -p benches
 
-# The Python baselines the benches are compared with (healpy + numpy), measured once.
+# The Python baselines the benches are compared with (healpy + numpy; Open3D's Embree ray
+# casting for the render benches), measured once.
 $(BENCH_VENV)/.ready:
 	python3 -m venv $(BENCH_VENV)
 	$(BENCH_VENV)/bin/pip install --quiet healpy numpy
 	touch $@
 
-bench-python: $(BENCH_VENV)/.ready
+# Open3D's wheel links libusb-1.0 (Debian's libusb-1.0-0), which the bare image lacks.
+$(BENCH_VENV)/.ready-open3d: $(BENCH_VENV)/.ready
+	ldconfig -p | grep -q libusb-1.0.so.0 || (apt-get update -qq && apt-get install -y -qq libusb-1.0-0)
+	$(BENCH_VENV)/bin/pip install --quiet open3d-cpu==0.20.0
+	touch $@
+
+bench-python: $(BENCH_VENV)/.ready $(BENCH_VENV)/.ready-open3d
 	$(BENCH_VENV)/bin/python benches/python/healpy_grid.py
+	mkdir -p runs/bench
+	$(BENCH_VENV)/bin/python benches/python/open3d_raycast.py --json runs/bench/open3d_raycast.json

@@ -74,4 +74,10 @@ pub enum RenderError {
         /// Position of the instance.
         instance: usize,
     },
+    /// More instances than a [`crate::Rendering`] can label.
+    #[error("{count} instances, at most 65536 can be rendered together")]
+    TooManyInstances {
+        /// Number of instances given.
+        count: usize,
+    },
 }

@@ -33,6 +33,7 @@ mod noise;
 pub mod primitives;
 mod render;
 mod sampling;
+mod tile_cast;
 
 pub use camera::PinholeCamera;
 pub use compare::{depth_discrepancy, unproject};
@@ -40,5 +41,5 @@ pub use error::RenderError;
 pub use mesh::TriangleMesh;
 pub use mesh_io::load_mesh;
 pub use noise::DepthNoise;
-pub use render::{Instance, Rendering, Scene, Window};
+pub use render::{Instance, NO_TRIANGLE, Rendering, Scene, Window};
 pub use sampling::sample_surface;

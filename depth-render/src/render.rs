@@ -1,14 +1,13 @@
-//! Ray casting of posed meshes into depth and instance masks with obvhs compressed-wide BVHs.
-use glam::Vec3A;
-use nalgebra::{Isometry3, Point3};
-use obvhs::BvhBuildParams;
-use obvhs::cwbvh::CwBvh;
-use obvhs::cwbvh::builder::build_cwbvh_from_tris;
-use obvhs::ray::{Ray, RayHit};
-use obvhs::triangle::Triangle;
+//! Scenes of posed meshes rendered into depth, instance and triangle maps, tile by tile in
+//! parallel (see [`crate::tile_cast`] for the ray casting itself).
+use nalgebra::Isometry3;
 use rayon::prelude::*;
 
+use crate::tile_cast::{MeshBvh, Placement, TILE, Tile, TileHits, cast_tile};
 use crate::{PinholeCamera, RenderError, TriangleMesh};
+
+/// The triangle index of background pixels in [`Rendering::triangle`].
+pub const NO_TRIANGLE: u32 = u32::MAX;
 
 /// A pixel rectangle `[u0, u1) × [v0, v1)` of the image.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -64,8 +63,9 @@ impl Instance {
     }
 }
 
-/// A rendered window: z-depth in metres (0 where no surface was hit) and the index of the
-/// instance seen at each pixel (`None` for background), row-major.
+/// A rendered window, row-major: z-depth in metres (0 where no surface was hit), the index of
+/// the instance seen at each pixel (`None` for background) and the index of the mesh triangle
+/// hit ([`NO_TRIANGLE`] for background).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Rendering {
     /// The pixels rendered.
@@ -74,55 +74,121 @@ pub struct Rendering {
     pub depth: Vec<f32>,
     /// Instance index per pixel.
     pub instance: Vec<Option<u16>>,
-}
-
-struct MeshBvh {
-    bvh: CwBvh,
-    /// Triangles in BVH primitive order (model frame).
-    triangles: Vec<Triangle>,
+    /// Triangle of the instance's mesh per pixel.
+    pub triangle: Vec<u32>,
 }
 
 /// Meshes with their BVHs, built once and rendered at any number of poses.
 pub struct Scene {
-    meshes: Vec<MeshBvh>,
+    meshes: Vec<TriangleMesh>,
+    bvhs: Vec<MeshBvh>,
 }
 
 impl Scene {
-    /// Builds one BVH per mesh.
+    /// Builds one BVH per mesh (in parallel).
     pub fn new(meshes: &[TriangleMesh]) -> Self {
-        let meshes = meshes
-            .iter()
-            .map(|mesh| {
-                let triangles: Vec<Triangle> = (0..mesh.triangles().len())
-                    .map(|t| {
-                        let [v0, v1, v2] = mesh.corners(t).map(|p| Vec3A::new(p.x, p.y, p.z));
-                        Triangle { v0, v1, v2 }
-                    })
-                    .collect();
-                let bvh = build_cwbvh_from_tris(
-                    &triangles,
-                    BvhBuildParams::medium_build(),
-                    &mut Default::default(),
-                );
-                let triangles = bvh
-                    .primitive_indices
-                    .iter()
-                    .map(|&i| triangles[i as usize])
-                    .collect();
-                MeshBvh { bvh, triangles }
-            })
-            .collect();
-        Self { meshes }
+        Self {
+            meshes: meshes.to_vec(),
+            bvhs: meshes.par_iter().map(MeshBvh::new).collect(),
+        }
     }
 
-    /// Renders `instances` seen by `camera` in `window` (clipped to the image), in parallel
-    /// over rows.
+    /// The scene's meshes, in the order given to [`Scene::new`].
+    pub fn meshes(&self) -> &[TriangleMesh] {
+        &self.meshes
+    }
+
+    /// Renders `instances` seen by `camera` in `window` (clipped to the image): one ray per
+    /// pixel centre, in parallel over bands of tiles. At most 65,536 instances.
     pub fn render(
         &self,
         camera: &PinholeCamera,
         instances: &[Instance],
         window: Window,
     ) -> Result<Rendering, RenderError> {
+        self.check(instances)?;
+        let window = Window {
+            u0: window.u0.min(camera.width),
+            v0: window.v0.min(camera.height),
+            u1: window.u1.min(camera.width),
+            v1: window.v1.min(camera.height),
+        };
+        let placements: Vec<Placement> = instances
+            .iter()
+            .map(|placed| Placement::new(&placed.camera_from_model))
+            .collect();
+        let (width, height) = (window.width() as usize, window.height() as usize);
+        let mut depth = vec![0.0f32; width * height];
+        let mut instance = vec![None; width * height];
+        let mut triangle = vec![NO_TRIANGLE; width * height];
+        if width == 0 || height == 0 {
+            return Ok(Rendering {
+                window,
+                depth,
+                instance,
+                triangle,
+            });
+        }
+        let xs: Vec<f32> = (window.u0..window.u1)
+            .map(|u| ((f64::from(u) - camera.cx) / camera.fx) as f32)
+            .collect();
+        let ys: Vec<f32> = (window.v0..window.v1)
+            .map(|v| ((f64::from(v) - camera.cy) / camera.fy) as f32)
+            .collect();
+        let intrinsics = [camera.fx, camera.fy, camera.cx, camera.cy].map(|c| c as f32);
+        let band = width * TILE;
+        depth
+            .par_chunks_mut(band)
+            .zip(instance.par_chunks_mut(band))
+            .zip(triangle.par_chunks_mut(band))
+            .enumerate()
+            .for_each(|(b, ((depth, instance), triangle))| {
+                let rows = b * TILE..(b * TILE + TILE).min(height);
+                let mut stack = Vec::with_capacity(64);
+                for columns in (0..width).step_by(TILE).map(|c| c..(c + TILE).min(width)) {
+                    let tile = Tile {
+                        origin: (
+                            window.u0 + columns.start as u32,
+                            window.v0 + rows.start as u32,
+                        ),
+                        xs: xs[columns.clone()].to_vec(),
+                        ys: ys[rows.clone()].to_vec(),
+                        intrinsics,
+                    };
+                    let mut hits = TileHits::new();
+                    for (k, (placed, placement)) in instances.iter().zip(&placements).enumerate() {
+                        let bvh = &self.bvhs[placed.mesh];
+                        cast_tile(bvh, placement, k as u16, &tile, &mut hits, &mut stack);
+                    }
+                    let tile_width = columns.len();
+                    for (r, row) in rows.clone().enumerate() {
+                        let out = (row - rows.start) * width + columns.start;
+                        for c in 0..tile_width {
+                            let t = r * tile_width + c;
+                            if hits.depth[t].is_finite() {
+                                depth[out + c] = hits.depth[t];
+                                instance[out + c] = Some(hits.instance[t]);
+                                triangle[out + c] = hits.triangle[t];
+                            }
+                        }
+                    }
+                }
+            });
+        Ok(Rendering {
+            window,
+            depth,
+            instance,
+            triangle,
+        })
+    }
+
+    /// Rejects instances naming unknown meshes, with non-finite poses, or too many of them.
+    fn check(&self, instances: &[Instance]) -> Result<(), RenderError> {
+        if instances.len() > usize::from(u16::MAX) + 1 {
+            return Err(RenderError::TooManyInstances {
+                count: instances.len(),
+            });
+        }
         for (instance, placed) in instances.iter().enumerate() {
             if placed.mesh >= self.meshes.len() {
                 return Err(RenderError::UnknownMesh {
@@ -136,73 +202,6 @@ impl Scene {
                 return Err(RenderError::NonFinitePose { instance });
             }
         }
-        let window = Window {
-            u0: window.u0.min(camera.width),
-            v0: window.v0.min(camera.height),
-            u1: window.u1.min(camera.width),
-            v1: window.v1.min(camera.height),
-        };
-        // Each instance sees the camera rays in its model frame: origin and rotated directions.
-        let frames: Vec<(Vec3A, nalgebra::Matrix3<f32>)> = instances
-            .iter()
-            .map(|placed| {
-                let model_from_camera = placed.camera_from_model.inverse();
-                let origin = model_from_camera * Point3::origin();
-                let rotation = model_from_camera
-                    .rotation
-                    .to_rotation_matrix()
-                    .into_inner()
-                    .cast::<f32>();
-                (
-                    Vec3A::new(origin.x as f32, origin.y as f32, origin.z as f32),
-                    rotation,
-                )
-            })
-            .collect();
-        let (width, height) = (window.width() as usize, window.height() as usize);
-        let mut depth = vec![0.0f32; width * height];
-        let mut instance = vec![None; width * height];
-        depth
-            .par_chunks_mut(width.max(1))
-            .zip(instance.par_chunks_mut(width.max(1)))
-            .enumerate()
-            .for_each(|(row, (depth_row, instance_row))| {
-                let v = f64::from(window.v0) + row as f64;
-                for (column, (d, id)) in depth_row
-                    .iter_mut()
-                    .zip(instance_row.iter_mut())
-                    .enumerate()
-                {
-                    let u = f64::from(window.u0) + column as f64;
-                    let [x, y, z] = camera.ray_direction(u, v).map(|c| c as f32);
-                    let direction = nalgebra::Vector3::new(x, y, z);
-                    let mut nearest = f32::INFINITY;
-                    for (k, (placed, (origin, rotation))) in
-                        instances.iter().zip(&frames).enumerate()
-                    {
-                        let local = rotation * direction;
-                        let mesh = &self.meshes[placed.mesh];
-                        let ray =
-                            Ray::new(*origin, Vec3A::new(local.x, local.y, local.z), 0.0, nearest);
-                        let mut hit = RayHit::none();
-                        if mesh
-                            .bvh
-                            .ray_traverse(ray, &mut hit, |r, i| mesh.triangles[i].intersect(r))
-                            && hit.t < nearest
-                        {
-                            nearest = hit.t;
-                            *id = u16::try_from(k).ok();
-                        }
-                    }
-                    if nearest.is_finite() {
-                        *d = nearest;
-                    }
-                }
-            });
-        Ok(Rendering {
-            window,
-            depth,
-            instance,
-        })
+        Ok(())
     }
 }
