@@ -34,6 +34,40 @@ pub enum RenderError {
         /// Index of the triangle.
         triangle: usize,
     },
+    /// A per-vertex attribute of the wrong length or with an invalid value.
+    #[error("mesh {attribute}: vertex {vertex}: {reason}")]
+    InvalidAttribute {
+        /// `normals`, `colors` or `uvs`.
+        attribute: &'static str,
+        /// The first offending vertex.
+        vertex: usize,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A rendering, instances and materials that do not belong together.
+    #[error("rendering does not match its instances: {reason}")]
+    RenderingMismatch {
+        /// What does not match.
+        reason: String,
+    },
+    /// An image texture with the wrong number of texels or values outside `[0, 1]`.
+    #[error("invalid texture: {reason}")]
+    InvalidTexture {
+        /// What is wrong.
+        reason: String,
+    },
+    /// A shape whose symmetry group is not a list of discrete rotations and axes.
+    #[error("the symmetry group of a {shape} is all of SO(3), not a list of rotations and axes")]
+    SymmetryNotRepresentable {
+        /// The shape.
+        shape: &'static str,
+    },
+    /// A mesh without a stable resting pose (flat or degenerate convex hull).
+    #[error("no stable resting pose: {reason}")]
+    NoRestingPose {
+        /// Why.
+        reason: String,
+    },
     /// A mesh file that cannot be read, or whose content is invalid.
     #[error("{path}: {field}: {reason}")]
     MeshFile {

@@ -1,4 +1,5 @@
-//! Triangle meshes: validated vertex positions (metres, model frame) and faces.
+//! Triangle meshes: validated vertex positions (metres, model frame) and faces, with optional
+//! per-vertex normals, colours and texture coordinates.
 use nalgebra::{Point3, Vector3};
 
 use crate::RenderError;
@@ -8,6 +9,9 @@ use crate::RenderError;
 pub struct TriangleMesh {
     positions: Vec<Point3<f32>>,
     triangles: Vec<[u32; 3]>,
+    normals: Option<Vec<Vector3<f32>>>,
+    colors: Option<Vec<[f32; 3]>>,
+    uvs: Option<Vec<[f32; 2]>>,
 }
 
 impl TriangleMesh {
@@ -43,7 +47,91 @@ impl TriangleMesh {
         Ok(Self {
             positions,
             triangles,
+            normals: None,
+            colors: None,
+            uvs: None,
         })
+    }
+
+    /// The mesh with per-vertex unit normals (used for smooth shading); they are normalised,
+    /// and must be finite, non-zero and one per vertex.
+    pub fn with_normals(mut self, normals: Vec<Vector3<f32>>) -> Result<Self, RenderError> {
+        self.check_attribute(
+            "normals",
+            normals.len(),
+            normals.iter().map(|n| n.as_slice()),
+        )?;
+        if let Some(vertex) = normals.iter().position(|n| n.norm() == 0.0) {
+            return Err(RenderError::InvalidAttribute {
+                attribute: "normals",
+                vertex,
+                reason: "zero length".into(),
+            });
+        }
+        self.normals = Some(normals.iter().map(|n| n.normalize()).collect());
+        Ok(self)
+    }
+
+    /// The mesh with per-vertex linear RGB colours in `[0, 1]`, one per vertex.
+    pub fn with_colors(mut self, colors: Vec<[f32; 3]>) -> Result<Self, RenderError> {
+        self.check_attribute("colors", colors.len(), colors.iter().map(|c| c.as_slice()))?;
+        if let Some(vertex) = colors
+            .iter()
+            .position(|c| c.iter().any(|v| !(0.0..=1.0).contains(v)))
+        {
+            return Err(RenderError::InvalidAttribute {
+                attribute: "colors",
+                vertex,
+                reason: "outside [0, 1]".into(),
+            });
+        }
+        self.colors = Some(colors);
+        Ok(self)
+    }
+
+    /// The mesh with per-vertex texture coordinates `(u, v)`, one per vertex.
+    pub fn with_uvs(mut self, uvs: Vec<[f32; 2]>) -> Result<Self, RenderError> {
+        self.check_attribute("uvs", uvs.len(), uvs.iter().map(|c| c.as_slice()))?;
+        self.uvs = Some(uvs);
+        Ok(self)
+    }
+
+    fn check_attribute<'a>(
+        &self,
+        attribute: &'static str,
+        len: usize,
+        mut values: impl Iterator<Item = &'a [f32]>,
+    ) -> Result<(), RenderError> {
+        if len != self.positions.len() {
+            return Err(RenderError::InvalidAttribute {
+                attribute,
+                vertex: len.min(self.positions.len()),
+                reason: format!("{len} values for {} vertices", self.positions.len()),
+            });
+        }
+        match values.position(|v| v.iter().any(|c| !c.is_finite())) {
+            Some(vertex) => Err(RenderError::InvalidAttribute {
+                attribute,
+                vertex,
+                reason: "not finite".into(),
+            }),
+            None => Ok(()),
+        }
+    }
+
+    /// Per-vertex unit normals, when the mesh has them.
+    pub fn normals(&self) -> Option<&[Vector3<f32>]> {
+        self.normals.as_deref()
+    }
+
+    /// Per-vertex RGB colours in `[0, 1]`, when the mesh has them.
+    pub fn colors(&self) -> Option<&[[f32; 3]]> {
+        self.colors.as_deref()
+    }
+
+    /// Per-vertex texture coordinates, when the mesh has them.
+    pub fn uvs(&self) -> Option<&[[f32; 2]]> {
+        self.uvs.as_deref()
     }
 
     /// Vertex positions (model frame, metres).
@@ -88,6 +176,11 @@ impl TriangleMesh {
             hi = hi.sup(p);
         }
         (lo, hi)
+    }
+
+    /// Unit outward normal of triangle `index` (model frame).
+    pub fn triangle_normal(&self, index: usize) -> Vector3<f64> {
+        self.face_normal(index).normalize()
     }
 
     /// Unnormalised normal of triangle `index` (length = twice its area).

@@ -1,8 +1,10 @@
 //! Loading meshes from PLY (ASCII or binary, any polygon size; BOP's `models/obj_*.ply`) and
 //! OBJ files, with a scale to metres (BOP meshes are in millimetres: `scale = 0.001`).
+//! Per-vertex normals (`nx ny nz`, OBJ `vn`), colours (`red green blue`, OBJ `v x y z r g b`) and
+//! texture coordinates (`s t`, `u v`, `texture_u texture_v`, OBJ `vt`) are kept when present.
 use std::path::{Path, PathBuf};
 
-use nalgebra::Point3;
+use nalgebra::{Point3, Vector3};
 use ply_rs_bw::parser::Parser;
 use ply_rs_bw::ply::{DefaultElement, Property};
 
@@ -11,8 +13,8 @@ use crate::{RenderError, TriangleMesh};
 /// Loads a `.ply` or `.obj` mesh and multiplies its coordinates by `scale`.
 ///
 /// Polygons are triangulated as fans. Every failure names the file and the element or field:
-/// unreadable or truncated files, missing `x`/`y`/`z` or face indices, non-finite coordinates,
-/// indices out of range, zero-area faces.
+/// unreadable or truncated files, missing `x`/`y`/`z` or face indices, non-finite coordinates or
+/// attributes, indices out of range, zero-area faces.
 pub fn load_mesh(path: &Path, scale: f64) -> Result<TriangleMesh, RenderError> {
     if !(scale.is_finite() && scale > 0.0) {
         return Err(file_error(
@@ -25,7 +27,7 @@ pub fn load_mesh(path: &Path, scale: f64) -> Result<TriangleMesh, RenderError> {
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
-    let (positions, polygons) = match extension.as_deref() {
+    let raw = match extension.as_deref() {
         Some("ply") => read_ply(path)?,
         Some("obj") => read_obj(path)?,
         _ => {
@@ -36,13 +38,14 @@ pub fn load_mesh(path: &Path, scale: f64) -> Result<TriangleMesh, RenderError> {
             ));
         }
     };
-    let positions = positions
+    let positions = raw
+        .positions
         .iter()
         .map(|p| (p * scale).cast::<f32>())
         .collect();
     let mut triangles = Vec::new();
     let mut face_of_triangle = Vec::new();
-    for (face, polygon) in polygons.iter().enumerate() {
+    for (face, polygon) in raw.polygons.iter().enumerate() {
         if polygon.len() < 3 {
             return Err(file_error(
                 path,
@@ -55,22 +58,56 @@ pub fn load_mesh(path: &Path, scale: f64) -> Result<TriangleMesh, RenderError> {
             face_of_triangle.push(face);
         }
     }
-    TriangleMesh::new(positions, triangles).map_err(|error| {
-        let field = match &error {
-            RenderError::NonFiniteVertex { vertex } => format!("vertex[{vertex}]"),
-            RenderError::IndexOutOfRange { triangle, .. }
-            | RenderError::DegenerateTriangle { triangle } => {
-                format!("face[{}]", face_of_triangle[*triangle])
-            }
-            _ => "mesh".into(),
-        };
-        file_error(path, &field, error.to_string())
-    })
+    let with_attributes = |mesh: TriangleMesh| -> Result<TriangleMesh, RenderError> {
+        let mut mesh = mesh;
+        if let Some(normals) = raw.normals {
+            mesh = mesh.with_normals(normals)?;
+        }
+        if let Some(colors) = raw.colors {
+            mesh = mesh.with_colors(colors)?;
+        }
+        if let Some(uvs) = raw.uvs {
+            mesh = mesh.with_uvs(uvs)?;
+        }
+        Ok(mesh)
+    };
+    TriangleMesh::new(positions, triangles)
+        .and_then(with_attributes)
+        .map_err(|error| {
+            let field = match &error {
+                RenderError::NonFiniteVertex { vertex } => format!("vertex[{vertex}]"),
+                RenderError::IndexOutOfRange { triangle, .. }
+                | RenderError::DegenerateTriangle { triangle } => {
+                    format!("face[{}]", face_of_triangle[*triangle])
+                }
+                RenderError::InvalidAttribute {
+                    attribute, vertex, ..
+                } => format!("vertex[{vertex}].{attribute}"),
+                _ => "mesh".into(),
+            };
+            file_error(path, &field, error.to_string())
+        })
 }
 
-type Polygons = Vec<Vec<u32>>;
+/// A mesh as read from a file, before validation.
+#[derive(Default)]
+struct RawMesh {
+    positions: Vec<Point3<f64>>,
+    polygons: Vec<Vec<u32>>,
+    normals: Option<Vec<Vector3<f32>>>,
+    colors: Option<Vec<[f32; 3]>>,
+    uvs: Option<Vec<[f32; 2]>>,
+}
 
-fn read_ply(path: &Path) -> Result<(Vec<Point3<f64>>, Polygons), RenderError> {
+/// Names of texture-coordinate pairs used by PLY writers.
+const UV_NAMES: [[&str; 2]; 4] = [
+    ["s", "t"],
+    ["u", "v"],
+    ["texture_u", "texture_v"],
+    ["texture_s", "texture_t"],
+];
+
+fn read_ply(path: &Path) -> Result<RawMesh, RenderError> {
     let mut file =
         std::fs::File::open(path).map_err(|e| file_error(path, "file", e.to_string()))?;
     let ply = Parser::<DefaultElement>::new()
@@ -80,9 +117,23 @@ fn read_ply(path: &Path) -> Result<(Vec<Point3<f64>>, Polygons), RenderError> {
         .payload
         .get("vertex")
         .ok_or_else(|| file_error(path, "vertex", "missing".into()))?;
-    let mut positions = Vec::with_capacity(vertices.len());
+    let first = vertices.first();
+    let has = |key: &str| first.is_some_and(|v| v.contains_key(key));
+    let uv_names = UV_NAMES.into_iter().find(|[u, v]| has(u) && has(v));
+    // Integer colours are 0–255; floating-point ones already 0–1.
+    let color_scale = match first.and_then(|v| v.get("red")) {
+        Some(Property::Float(_) | Property::Double(_)) => 1.0,
+        _ => 1.0 / 255.0,
+    };
+    let mut raw = RawMesh {
+        positions: Vec::with_capacity(vertices.len()),
+        normals: has("nx").then(Vec::new),
+        colors: (has("red") && has("green") && has("blue")).then(Vec::new),
+        uvs: uv_names.map(|_| Vec::new()),
+        ..RawMesh::default()
+    };
     for (i, vertex) in vertices.iter().enumerate() {
-        let coordinate = |key: &str| {
+        let value = |key: &str| {
             vertex.get(key).and_then(scalar).ok_or_else(|| {
                 file_error(
                     path,
@@ -91,17 +142,24 @@ fn read_ply(path: &Path) -> Result<(Vec<Point3<f64>>, Polygons), RenderError> {
                 )
             })
         };
-        positions.push(Point3::new(
-            coordinate("x")?,
-            coordinate("y")?,
-            coordinate("z")?,
-        ));
+        raw.positions
+            .push(Point3::new(value("x")?, value("y")?, value("z")?));
+        if let Some(normals) = &mut raw.normals {
+            normals.push(Vector3::new(value("nx")?, value("ny")?, value("nz")?).cast());
+        }
+        if let Some(colors) = &mut raw.colors {
+            let channel = |key| value(key).map(|c| (c * color_scale) as f32);
+            colors.push([channel("red")?, channel("green")?, channel("blue")?]);
+        }
+        if let (Some(uvs), Some([u, v])) = (&mut raw.uvs, uv_names) {
+            uvs.push([value(u)? as f32, value(v)? as f32]);
+        }
     }
     let faces = ply
         .payload
         .get("face")
         .ok_or_else(|| file_error(path, "face", "missing".into()))?;
-    let mut polygons = Vec::with_capacity(faces.len());
+    raw.polygons.reserve(faces.len());
     for (i, face) in faces.iter().enumerate() {
         let list = face
             .get("vertex_indices")
@@ -113,9 +171,9 @@ fn read_ply(path: &Path) -> Result<(Vec<Point3<f64>>, Polygons), RenderError> {
                 "missing or not a list of indices".into(),
             )
         })?;
-        polygons.push(indices);
+        raw.polygons.push(indices);
     }
-    Ok((positions, polygons))
+    Ok(raw)
 }
 
 fn scalar(property: &Property) -> Option<f64> {
@@ -147,7 +205,7 @@ fn index_list(property: &Property) -> Option<Vec<u32>> {
     }
 }
 
-fn read_obj(path: &Path) -> Result<(Vec<Point3<f64>>, Polygons), RenderError> {
+fn read_obj(path: &Path) -> Result<RawMesh, RenderError> {
     let options = tobj::LoadOptions {
         single_index: true,
         triangulate: false,
@@ -155,12 +213,39 @@ fn read_obj(path: &Path) -> Result<(Vec<Point3<f64>>, Polygons), RenderError> {
     };
     let (models, _materials) = tobj::load_obj(path, &options)
         .map_err(|e| file_error(path, "file", format!("not a readable OBJ: {e}")))?;
-    let mut positions = Vec::new();
-    let mut polygons = Vec::new();
+    let mut raw = RawMesh::default();
+    let all =
+        |has: fn(&tobj::Mesh) -> bool| !models.is_empty() && models.iter().all(|m| has(&m.mesh));
+    if all(|m| !m.normals.is_empty()) {
+        raw.normals = Some(Vec::new());
+    }
+    if all(|m| !m.vertex_color.is_empty()) {
+        raw.colors = Some(Vec::new());
+    }
+    if all(|m| !m.texcoords.is_empty()) {
+        raw.uvs = Some(Vec::new());
+    }
     for model in &models {
         let mesh = &model.mesh;
-        let offset = positions.len() as u32;
-        positions.extend(
+        let offset = raw.positions.len() as u32;
+        if let Some(normals) = &mut raw.normals {
+            normals.extend(
+                mesh.normals
+                    .chunks_exact(3)
+                    .map(|n| Vector3::new(n[0], n[1], n[2])),
+            );
+        }
+        if let Some(colors) = &mut raw.colors {
+            colors.extend(
+                mesh.vertex_color
+                    .chunks_exact(3)
+                    .map(|c| [c[0], c[1], c[2]]),
+            );
+        }
+        if let Some(uvs) = &mut raw.uvs {
+            uvs.extend(mesh.texcoords.chunks_exact(2).map(|t| [t[0], t[1]]));
+        }
+        raw.positions.extend(
             mesh.positions
                 .chunks_exact(3)
                 .map(|p| Point3::new(p[0], p[1], p[2]).cast::<f64>()),
@@ -179,11 +264,12 @@ fn read_obj(path: &Path) -> Result<(Vec<Point3<f64>>, Polygons), RenderError> {
                     "face indices are truncated".into(),
                 )
             })?;
-            polygons.push(face.iter().map(|&i| i + offset).collect());
+            raw.polygons
+                .push(face.iter().map(|&i| i + offset).collect());
             start += arity;
         }
     }
-    Ok((positions, polygons))
+    Ok(raw)
 }
 
 fn file_error(path: &Path, field: &str, reason: String) -> RenderError {

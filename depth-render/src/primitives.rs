@@ -41,6 +41,72 @@ pub fn cuboid(extents: [f64; 3]) -> Result<TriangleMesh, RenderError> {
 pub fn cylinder(radius: f64, height: f64, segments: u32) -> Result<TriangleMesh, RenderError> {
     check_dimension("radius", radius)?;
     check_dimension("height", height)?;
+    let (bottom, top) = (-0.5 * height, 0.5 * height);
+    revolve(
+        &[(0.0, bottom), (radius, bottom), (radius, top), (0.0, top)],
+        segments,
+    )
+}
+
+/// A closed cone: base of `radius` at `z = −height/2`, apex at `z = +height/2`.
+pub fn cone(radius: f64, height: f64, segments: u32) -> Result<TriangleMesh, RenderError> {
+    check_dimension("radius", radius)?;
+    check_dimension("height", height)?;
+    let (bottom, top) = (-0.5 * height, 0.5 * height);
+    revolve(&[(0.0, bottom), (radius, bottom), (0.0, top)], segments)
+}
+
+/// A bowl opening towards +z, standing on a flat foot: the outer wall rises from a foot of
+/// 40% of the rim `radius` to the rim along a quarter-ellipse, the inner wall follows it
+/// `thickness` inside, and a flat rim joins them; `height` overall, bounding box centred at the
+/// origin. `segments` around, `rings` along each wall.
+pub fn bowl(
+    radius: f64,
+    height: f64,
+    thickness: f64,
+    segments: u32,
+    rings: u32,
+) -> Result<TriangleMesh, RenderError> {
+    check_dimension("radius", radius)?;
+    check_dimension("height", height)?;
+    check_dimension("thickness", thickness)?;
+    let foot = 0.4 * radius;
+    if thickness >= foot.min(height) {
+        return Err(RenderError::InvalidDimension {
+            name: "thickness",
+            value: thickness,
+        });
+    }
+    if rings < 2 {
+        return Err(RenderError::InvalidDimension {
+            name: "rings",
+            value: f64::from(rings),
+        });
+    }
+    let (bottom, top) = (-0.5 * height, 0.5 * height);
+    // A wall from (inner, top − depth) at angle 0 to (outer, top) at angle π/2.
+    let wall = |inner: f64, outer: f64, depth: f64, k: u32| {
+        let angle = std::f64::consts::FRAC_PI_2 * f64::from(k) / f64::from(rings);
+        (
+            inner + (outer - inner) * angle.sin(),
+            top - depth * angle.cos(),
+        )
+    };
+    let mut profile = vec![(0.0, bottom)];
+    profile.extend((0..=rings).map(|k| wall(foot, radius, height, k)));
+    profile.extend(
+        (0..=rings)
+            .rev()
+            .map(|k| wall(foot - thickness, radius - thickness, height - thickness, k)),
+    );
+    profile.push((0.0, bottom + thickness));
+    revolve(&profile, segments)
+}
+
+/// The closed surface swept by rotating a profile `(radius, z)` about the z-axis. The profile
+/// starts and ends on the axis (radius 0) and runs counter-clockwise (outward on the right of
+/// the direction of travel in the `(radius, z)` half-plane) with all inner points off the axis.
+fn revolve(profile: &[(f64, f64)], segments: u32) -> Result<TriangleMesh, RenderError> {
     if segments < 3 {
         return Err(RenderError::InvalidDimension {
             name: "segments",
@@ -48,26 +114,31 @@ pub fn cylinder(radius: f64, height: f64, segments: u32) -> Result<TriangleMesh,
         });
     }
     let n = segments;
-    let mut positions = Vec::with_capacity(2 * n as usize + 2);
-    for z in [-0.5 * height, 0.5 * height] {
+    let rings = &profile[1..profile.len() - 1];
+    let mut positions = vec![Point3::new(0.0, 0.0, profile[0].1)];
+    for &(radius, z) in rings {
         for i in 0..n {
             let (s, c) = (std::f64::consts::TAU * f64::from(i) / f64::from(n)).sin_cos();
             positions.push(Point3::new(radius * c, radius * s, z));
         }
     }
-    let (bottom_centre, top_centre) = (2 * n, 2 * n + 1);
-    positions.push(Point3::new(0.0, 0.0, -0.5 * height));
-    positions.push(Point3::new(0.0, 0.0, 0.5 * height));
-    let mut triangles = Vec::with_capacity(4 * n as usize);
+    let last_pole = positions.len() as u32;
+    positions.push(Point3::new(0.0, 0.0, profile[profile.len() - 1].1));
+    let ring = |r: usize, i: u32| 1 + r as u32 * n + i % n;
+    let mut triangles = Vec::with_capacity(2 * n as usize * rings.len());
     for i in 0..n {
-        let j = (i + 1) % n;
-        let (b0, b1, t0, t1) = (i, j, n + i, n + j);
-        triangles.extend([
-            [b0, b1, t1],
-            [b0, t1, t0],
-            [top_centre, t0, t1],
-            [bottom_centre, b1, b0],
-        ]);
+        triangles.push([0, ring(0, i + 1), ring(0, i)]);
+        for r in 0..rings.len() - 1 {
+            let (a, b, c, d) = (
+                ring(r, i),
+                ring(r, i + 1),
+                ring(r + 1, i + 1),
+                ring(r + 1, i),
+            );
+            triangles.extend([[a, b, c], [a, c, d]]);
+        }
+        let r = rings.len() - 1;
+        triangles.push([last_pole, ring(r, i), ring(r, i + 1)]);
     }
     mesh(positions, triangles)
 }

@@ -184,3 +184,41 @@ fn malformed_files_name_the_file_and_the_field() {
         matches!(load_mesh(&ok, 0.0), Err(RenderError::MeshFile { field, .. }) if field == "scale")
     );
 }
+
+#[test]
+fn vertex_colours_normals_and_texture_coordinates_are_kept() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = load_mesh(&write(dir.path(), "c.ply", ASCII_PLY.as_bytes()), 0.001).unwrap();
+    let colors = mesh.colors().unwrap();
+    assert_eq!(colors[0], [1.0, 0.0, 0.0]);
+    assert_eq!(colors[4], [0.0, 0.0, 1.0]);
+    assert!(mesh.normals().is_none() && mesh.uvs().is_none());
+
+    let ply = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+               property float z\nproperty float nx\nproperty float ny\nproperty float nz\n\
+               property float s\nproperty float t\nelement face 1\n\
+               property list uchar int vertex_indices\nend_header\n\
+               0 0 0 0 0 2 0 0\n1 0 0 0 0 2 1 0\n0 1 0 0 0 2 0 1\n3 0 1 2\n";
+    let mesh = load_mesh(&write(dir.path(), "n.ply", ply.as_bytes()), 1.0).unwrap();
+    assert_eq!(
+        mesh.normals().unwrap()[1],
+        nalgebra::Vector3::new(0.0, 0.0, 1.0)
+    );
+    assert_eq!(mesh.uvs().unwrap()[2], [0.0, 1.0]);
+
+    let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nvn 0 0 1\nf 1/1/1 2/2/1 3/3/1\n";
+    let mesh = load_mesh(&write(dir.path(), "t.obj", obj.as_bytes()), 1.0).unwrap();
+    assert_eq!(mesh.uvs().unwrap()[1], [1.0, 0.0]);
+    assert_eq!(
+        mesh.normals().unwrap()[0],
+        nalgebra::Vector3::new(0.0, 0.0, 1.0)
+    );
+
+    // A zero normal is a typed error naming the vertex.
+    let bad = ply.replace("1 0 0 0 0 2 1 0", "1 0 0 0 0 0 1 0");
+    let error = load_mesh(&write(dir.path(), "bad.ply", bad.as_bytes()), 1.0).unwrap_err();
+    assert!(
+        matches!(&error, RenderError::MeshFile { field, .. } if field == "vertex[1].normals"),
+        "{error}"
+    );
+}
