@@ -29,11 +29,14 @@ struct Cli {
 enum Command {
     /// Write an equivolumetric SO(3) grid (HEALPix × Hopf) as .npy.
     Grid(commands::grid::GridArgs),
+    /// Render a mesh at a BOP pose into BOP depth (and RGB, mask) PNGs.
+    Render(commands::render::RenderArgs),
 }
 
 fn run(cli: &Cli) -> Result<serde_json::Value> {
     match &cli.command {
         Command::Grid(args) => commands::grid::run(args),
+        Command::Render(args) => commands::render::run(args, cli.seed),
     }
 }
 
@@ -58,7 +61,10 @@ fn main() -> ExitCode {
             ExitCode::SUCCESS
         }
         Err(error) => {
-            eprintln!("error: {error:#}");
+            // One line, whatever the causes' own formatting.
+            let message = format!("{error:#}");
+            let words: Vec<&str> = message.split_whitespace().collect();
+            eprintln!("error: {}", words.join(" "));
             ExitCode::FAILURE
         }
     }

@@ -1,2 +1,3 @@
 //! One module per `ipdf` subcommand.
 pub mod grid;
+pub mod render;
