@@ -1,26 +1,42 @@
-//! CPU ray casting of triangle meshes into depth images and instance masks.
+//! CPU ray casting of triangle meshes into depth, instance masks, triangle ids, normals and
+//! shaded RGB.
 //!
-//! - [`TriangleMesh`]: validated vertices and faces (metres, model frame); [`load_mesh`]
-//!   reads PLY and OBJ files; [`primitives`] builds closed, outward-wound shapes with exact
-//!   dimensions.
+//! - [`TriangleMesh`]: validated vertices and faces (metres, model frame) with optional vertex
+//!   normals, colours and texture coordinates; [`load_mesh`] reads PLY and OBJ files;
+//!   [`primitives`] builds closed, outward-wound shapes with exact dimensions and [`Primitive`]
+//!   names them with their analytic symmetry groups ([`metrics::SymmetryGroup`]).
+//! - [`resting_poses`]: the faces of the convex hull an object can stand on, with their
+//!   probabilities; [`RestingPose::on_table`] places it on a table.
 //! - [`PinholeCamera`]: OpenCV intrinsics; depth is z-depth.
-//! - [`Scene`]: one obvhs compressed-wide BVH per mesh, instanced by model→camera poses and
-//!   rendered row-parallel into a [`Rendering`] of any pixel [`Window`].
+//! - [`Scene`]: one BVH per mesh (obvhs' PLOC builder), instanced by model→camera poses and
+//!   rendered over any pixel [`Window`] by casting the rays of 16×16-pixel tiles together:
+//!   front-to-back frustum traversal and an exact, watertight ray–triangle test. Then
+//!   [`Scene::normals`], [`Scene::barycentrics`] and [`Scene::shade`] (Lambert + ambient,
+//!   [`Material`]: flat colour, vertex colours, image texture or symmetry-breaking patches).
 //! - [`unproject`] depth back to points, [`depth_discrepancy`] (the render-and-compare score),
 //!   [`DepthNoise`] (a sensor model), [`sample_surface`] (area-weighted points and normals).
 //!
 //! ```
-//! use depth_render::{primitives, Instance, PinholeCamera, Scene, Window};
+//! use depth_render::{Instance, Lighting, Material, PinholeCamera, Primitive, Scene, Window};
 //! use nalgebra::{Isometry3, Vector3};
 //!
-//! let cube = primitives::cuboid([0.1, 0.1, 0.1])?;
+//! let can = Primitive::Cylinder { radius: 0.04, height: 0.1, segments: 64 };
 //! let camera = PinholeCamera::new(500.0, 500.0, 32.0, 24.0, 64, 48)?;
-//! let scene = Scene::new(&[cube]);
-//! let pose = Isometry3::translation(0.0, 0.0, 0.5);
-//! let out = scene.render(&camera, &[Instance::new(0, pose)], Window::full(&camera))?;
-//! // The principal ray meets the cube's front face at z = 0.5 − 0.05.
-//! let centre = (24 * 64 + 32) as usize;
+//! let scene = Scene::new(&[can.mesh()?]);
+//! // The can's axis along the camera's z-axis, its bottom cap 0.45 m away.
+//! let instances = [Instance::new(0, Isometry3::translation(0.0, 0.0, 0.5))];
+//! let out = scene.render(&camera, &instances, Window::full(&camera))?;
+//! let centre = 24 * 64 + 32;
 //! assert!((out.depth[centre] - 0.45).abs() < 1e-6);
+//! // The cap's outward normal faces the camera.
+//! let normals = scene.normals(&camera, &instances, &out)?;
+//! assert!((Vector3::from(normals[centre]) + Vector3::z()).norm() < 1e-6);
+//! let rgb = scene.shade(&camera, &instances, &[Material::Uniform([1.0, 0.0, 0.0])],
+//!                       &Lighting::default(), &out)?;
+//! assert!(rgb[centre][0] > 0 && rgb[centre][1] == 0);
+//! // Turning the can about its axis or flipping it over changes nothing it looks like.
+//! let symmetry = can.symmetry()?;
+//! assert_eq!((symmetry.continuous.len(), symmetry.discrete.len()), (1, 1));
 //! # Ok::<(), depth_render::RenderError>(())
 //! ```
 

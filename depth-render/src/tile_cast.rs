@@ -51,7 +51,7 @@ impl MeshBvh {
             .collect();
         let params = BvhBuildParams {
             max_prims_per_leaf: 4,
-            ..BvhBuildParams::medium_build()
+            ..BvhBuildParams::fast_build()
         };
         let bvh = build_bvh2_from_tris(&triangles, params, &mut Default::default());
         let nodes = bvh
