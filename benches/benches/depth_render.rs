@@ -82,6 +82,11 @@ fn rendering(c: &mut Criterion) {
     group.bench_function("bvh_build/82k_triangles/obvhs_cwbvh_baseline", |b| {
         b.iter(|| CwBaseline::new(black_box(&big)))
     });
+    let huge = primitives::sphere(0.1, 7).unwrap(); // 327,680 triangles
+    group.throughput(Throughput::Elements(huge.triangles().len() as u64));
+    group.bench_function("bvh_build/328k_triangles", |b| {
+        b.iter(|| Scene::new(black_box(std::slice::from_ref(&huge))))
+    });
 
     // T-LESS-like intrinsics; a 20k-triangle sphere of 0.1 m radius at 0.7 m fills ~1/4 of the
     // image.
