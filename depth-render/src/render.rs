@@ -151,8 +151,8 @@ impl Scene {
                             window.u0 + columns.start as u32,
                             window.v0 + rows.start as u32,
                         ),
-                        xs: xs[columns.clone()].to_vec(),
-                        ys: ys[rows.clone()].to_vec(),
+                        xs: &xs[columns.clone()],
+                        ys: &ys[rows.clone()],
                         intrinsics,
                     };
                     let mut hits = TileHits::new();

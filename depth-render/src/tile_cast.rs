@@ -104,11 +104,11 @@ impl Placement {
 }
 
 /// The pixels of one tile: ray coordinates `x = (u − cx)/fx` of its columns and `y` of its rows.
-pub(crate) struct Tile {
+pub(crate) struct Tile<'a> {
     /// Image column and row of the tile's first pixel.
     pub(crate) origin: (u32, u32),
-    pub(crate) xs: Vec<f32>,
-    pub(crate) ys: Vec<f32>,
+    pub(crate) xs: &'a [f32],
+    pub(crate) ys: &'a [f32],
     /// Focal lengths and principal point, to bound triangles' projections.
     pub(crate) intrinsics: [f32; 4],
 }

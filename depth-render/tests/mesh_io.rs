@@ -222,3 +222,48 @@ fn vertex_colours_normals_and_texture_coordinates_are_kept() {
         "{error}"
     );
 }
+
+#[test]
+fn attributes_of_the_wrong_length_or_range_are_typed_errors() {
+    let mesh = depth_render::primitives::tetrahedron(0.1).unwrap();
+    let n = mesh.positions().len();
+    let error = mesh.clone().with_uvs(vec![[0.0, 0.0]; n - 1]).unwrap_err();
+    assert!(
+        matches!(
+            error,
+            RenderError::InvalidAttribute {
+                attribute: "uvs",
+                ..
+            }
+        ),
+        "{error}"
+    );
+    let mut colors = vec![[0.5f32; 3]; n];
+    colors[2] = [0.5, 1.5, 0.5];
+    let error = mesh.clone().with_colors(colors).unwrap_err();
+    assert!(
+        matches!(
+            error,
+            RenderError::InvalidAttribute {
+                attribute: "colors",
+                vertex: 2,
+                ..
+            }
+        ),
+        "{error}"
+    );
+    let mut normals = vec![nalgebra::Vector3::z(); n];
+    normals[1].x = f32::NAN;
+    let error = mesh.with_normals(normals).unwrap_err();
+    assert!(
+        matches!(
+            error,
+            RenderError::InvalidAttribute {
+                attribute: "normals",
+                vertex: 1,
+                ..
+            }
+        ),
+        "{error}"
+    );
+}

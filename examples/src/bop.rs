@@ -89,24 +89,10 @@ pub fn pose_from_json(
     path: &Path,
     prefix: &str,
 ) -> Result<Isometry3<f64>, FileError> {
-    let rotation_field = format!("{prefix}cam_R_m2c");
-    let r: [f64; 9] = numbers(
-        value
-            .get("cam_R_m2c")
-            .ok_or_else(|| FileError::new(path, &rotation_field, "missing"))?,
-        path,
-        &rotation_field,
-    )?;
+    let r: [f64; 9] = numbers_at(value, "cam_R_m2c", path, prefix)?;
     let rotation = so3_grid::rotation_from_matrix(&r)
-        .map_err(|e| FileError::new(path, &rotation_field, e.to_string()))?;
-    let translation_field = format!("{prefix}cam_t_m2c");
-    let t: [f64; 3] = numbers(
-        value
-            .get("cam_t_m2c")
-            .ok_or_else(|| FileError::new(path, &translation_field, "missing"))?,
-        path,
-        &translation_field,
-    )?;
+        .map_err(|e| FileError::new(path, format!("{prefix}cam_R_m2c"), e.to_string()))?;
+    let t: [f64; 3] = numbers_at(value, "cam_t_m2c", path, prefix)?;
     Ok(Isometry3::from_parts(
         Translation3::new(t[0] * 1e-3, t[1] * 1e-3, t[2] * 1e-3),
         rotation,
@@ -128,6 +114,20 @@ fn number(value: &Value, key: &str, path: &Path, prefix: &str) -> Result<f64, Fi
     v.as_f64()
         .filter(|v| v.is_finite())
         .ok_or_else(|| FileError::new(path, &field, format!("{v} is not a finite number")))
+}
+
+/// The list of `N` finite numbers under `key` of `value`.
+fn numbers_at<const N: usize>(
+    value: &Value,
+    key: &str,
+    path: &Path,
+    prefix: &str,
+) -> Result<[f64; N], FileError> {
+    let field = format!("{prefix}{key}");
+    let list = value
+        .get(key)
+        .ok_or_else(|| FileError::new(path, &field, "missing"))?;
+    numbers(list, path, &field)
 }
 
 fn numbers<const N: usize>(value: &Value, path: &Path, field: &str) -> Result<[f64; N], FileError> {

@@ -56,28 +56,42 @@ fn inputs() -> Inputs {
     }
 }
 
+/// `ipdf render` of `mesh` at `pose` seen by `camera`, depth to `out`.
+fn render_args<'a>(
+    mesh: &'a Path,
+    camera: &'a Path,
+    pose: &'a Path,
+    out: &'a Path,
+) -> Vec<&'a str> {
+    vec![
+        "render",
+        "--mesh",
+        mesh.to_str().unwrap(),
+        "--camera",
+        camera.to_str().unwrap(),
+        "--pose",
+        pose.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]
+}
+
 #[test]
 fn renders_bop_depth_rgb_and_mask() {
     let input = inputs();
     let out = |name: &str| input.dir.path().join(name);
-    let result = ipdf(&[
-        "render",
-        "--mesh",
-        input.mesh.to_str().unwrap(),
-        "--camera",
-        input.camera.to_str().unwrap(),
-        "--pose",
-        input.pose.to_str().unwrap(),
-        "--out",
-        out("depth.png").to_str().unwrap(),
+    let (depth, rgb, mask) = (out("depth.png"), out("rgb.png"), out("mask.png"));
+    let mut args = render_args(&input.mesh, &input.camera, &input.pose, &depth);
+    args.extend([
         "--rgb",
-        out("rgb.png").to_str().unwrap(),
+        rgb.to_str().unwrap(),
         "--mask",
-        out("mask.png").to_str().unwrap(),
+        mask.to_str().unwrap(),
         "--depth-scale",
         "0.1",
         "--json",
     ]);
+    let result = ipdf(&args);
     assert!(
         result.status.success(),
         "{}",
@@ -106,17 +120,7 @@ fn bad_inputs_exit_non_zero_with_the_file_and_field() {
     let input = inputs();
     let depth = input.dir.path().join("depth.png");
     let run = |mesh: &Path, camera: &Path, pose: &Path, extra: &[&str]| {
-        let mut args = vec![
-            "render",
-            "--mesh",
-            mesh.to_str().unwrap(),
-            "--camera",
-            camera.to_str().unwrap(),
-            "--pose",
-            pose.to_str().unwrap(),
-            "--out",
-            depth.to_str().unwrap(),
-        ];
+        let mut args = render_args(mesh, camera, pose, &depth);
         args.extend_from_slice(extra);
         let out = ipdf(&args);
         assert!(!out.status.success());
@@ -169,5 +173,49 @@ fn bad_inputs_exit_non_zero_with_the_file_and_field() {
         &["--depth-scale", "0.001"],
     );
     assert!(e.contains("depth.png") && e.contains("uint16"), "{e}");
+    let e = run(
+        &input.mesh,
+        &input.camera,
+        &input.pose,
+        &["--depth-scale", "0"],
+    );
+    assert!(e.contains("--depth-scale"), "{e}");
+    let e = run(
+        &input.mesh,
+        &input.camera,
+        &input.pose,
+        &["--mesh-scale=-1"],
+    );
+    assert!(e.contains("obj_000001.ply") && e.contains("scale"), "{e}");
     assert!(!depth.exists(), "no partial output");
+}
+
+#[test]
+fn noise_changes_depth_deterministically_per_seed() {
+    let input = inputs();
+    let render = |seed: &str, name: &str| {
+        let path = input.dir.path().join(name);
+        let mut args = render_args(&input.mesh, &input.camera, &input.pose, &path);
+        args.extend(["--depth-scale", "0.1", "--noise", "--seed", seed]);
+        let out = ipdf(&args);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        image::open(path).unwrap().into_luma16().into_raw()
+    };
+    let (a, b, c) = (
+        render("1", "a.png"),
+        render("1", "b.png"),
+        render("2", "c.png"),
+    );
+    assert_eq!(a, b);
+    assert_ne!(a, c);
+    // Quantised to 1 mm (10 units of 0.1 mm), within a few σ of 480 mm.
+    let centre = a[60 * 160 + 80];
+    assert!(
+        centre % 10 == 0 && (4700..=4900).contains(&centre),
+        "{centre}"
+    );
 }

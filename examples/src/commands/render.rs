@@ -74,12 +74,14 @@ pub fn run(args: &RenderArgs, seed: u64) -> Result<serde_json::Value> {
     let rendering = scene.render(&camera, &instances, Window::full(&camera))?;
     let render_ms = start.elapsed().as_secs_f64() * 1e3;
     let (width, height) = (camera.width, camera.height);
+    let noisy;
     let depth = if args.noise {
-        DepthNoise::default().apply(&rendering.depth, width as usize, seed)
+        noisy = DepthNoise::default().apply(&rendering.depth, width as usize, seed);
+        &noisy
     } else {
-        rendering.depth.clone()
+        &rendering.depth
     };
-    png::write_depth(&args.out, &depth, width, height, args.depth_scale)?;
+    png::write_depth(&args.out, depth, width, height, args.depth_scale)?;
     if let Some(path) = &args.rgb {
         let rgb = scene
             .shade(
