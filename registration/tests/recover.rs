@@ -1,0 +1,140 @@
+//! FGR + ICP recovers random rigid transforms of a non-symmetric object's partial view.
+
+mod common;
+
+use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
+use proptest::prelude::*;
+use proptest::strategy::ValueTree;
+use proptest::test_runner::TestRunner;
+use registration::{
+    IcpOptions, NormalOrientation, PointCloud, PrepareOptions, PreparedCloud, RegisterOptions,
+    prepare_cloud, refine_icp, register,
+};
+
+const VOXEL: f32 = 0.005;
+
+fn prepared_model() -> (common::Samples, PreparedCloud) {
+    let model = common::model(20_000);
+    let cloud = PointCloud::new(model.0.clone())
+        .unwrap()
+        .with_normals(model.1.clone())
+        .unwrap();
+    let prepared = prepare_cloud(&cloud, &PrepareOptions::for_voxel(VOXEL)).unwrap();
+    (model, prepared)
+}
+
+fn prepared_view(model: &common::Samples, truth: &Isometry3<f64>, seed: u64) -> PreparedCloud {
+    let view = common::view(model, truth, 0.001, seed);
+    let options = PrepareOptions::for_voxel(VOXEL)
+        .oriented(NormalOrientation::TowardsViewpoint(Point3::origin()));
+    prepare_cloud(&view, &options).unwrap()
+}
+
+/// Uniform random rotations (Shoemake) and translations up to 0.5 m, in front of the camera.
+fn poses() -> impl Strategy<Value = Isometry3<f64>> {
+    (
+        0.0f64..1.0,
+        0.0f64..std::f64::consts::TAU,
+        0.0f64..std::f64::consts::TAU,
+        -0.25f64..0.25,
+        -0.25f64..0.25,
+        0.25f64..0.35,
+    )
+        .prop_map(|(u, a, b, x, y, z)| {
+            let (s, t) = ((1.0 - u).sqrt(), u.sqrt());
+            common::pose(
+                [t * b.cos(), s * a.sin(), s * a.cos(), t * b.sin()],
+                [x, y, z],
+            )
+        })
+}
+
+#[test]
+fn fgr_and_icp_recover_95_percent_of_random_transforms() {
+    let (model, source) = prepared_model();
+    let mut runner = TestRunner::deterministic();
+    let strategy = poses();
+    let trials = 40;
+    let mut failures = Vec::new();
+    for trial in 0..trials {
+        let truth = strategy.new_tree(&mut runner).unwrap().current();
+        let target = prepared_view(&model, &truth, trial);
+        let options = RegisterOptions {
+            fgr: registration::FgrOptions {
+                seed: trial,
+                ..RegisterOptions::default().fgr
+            },
+            ..RegisterOptions::default()
+        };
+        let found = register(&source, &target, &Isometry3::identity(), &options).unwrap();
+        let (rotation, translation) = common::errors(&found.alignment.pose, &truth);
+        if rotation > 2.0 || translation > 0.005 {
+            failures.push(format!(
+                "trial {trial}: {rotation:.2}° {:.2} mm",
+                translation * 1e3
+            ));
+        }
+    }
+    let successes = trials as usize - failures.len();
+    assert!(
+        successes * 100 >= 95 * trials as usize,
+        "{successes}/{trials} recovered; failures: {failures:?}"
+    );
+}
+
+#[test]
+fn registration_is_deterministic_across_thread_counts() {
+    let (model, source) = prepared_model();
+    let truth = common::pose([0.2, -0.7, 0.4, 0.5], [0.1, -0.05, 0.3]);
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let target = prepared_view(&model, &truth, 9);
+            register(
+                &source,
+                &target,
+                &Isometry3::identity(),
+                &RegisterOptions::default(),
+            )
+            .unwrap()
+            .alignment
+        })
+    };
+    let (one, two) = (run(1), run(2));
+    assert_eq!(one.pose, two.pose);
+    assert_eq!(one.fitness, two.fitness);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(16))]
+
+    /// ICP alone (no global step) converges from any perturbation under 15° (and 1 cm).
+    #[test]
+    fn icp_converges_from_perturbations_under_15_degrees(
+        truth in poses(),
+        axis in (-1.0f64..1.0, -1.0f64..1.0, -1.0f64..1.0),
+        angle in 0.0f64..15.0,
+        shift in (-0.006f64..0.006, -0.006f64..0.006, -0.006f64..0.006),
+    ) {
+        let axis = Vector3::new(axis.0, axis.1, axis.2);
+        prop_assume!(axis.norm() > 0.1);
+        let (model, source) = prepared_model();
+        let target = prepared_view(&model, &truth, 3);
+        let perturbation = Isometry3::from_parts(
+            Vector3::new(shift.0, shift.1, shift.2).into(),
+            UnitQuaternion::from_scaled_axis(axis.normalize() * angle.to_radians()),
+        );
+        let centre = source.cloud.centroid().unwrap().coords;
+        // Perturb about the object's centre, in the camera frame.
+        let start = Isometry3::translation(centre.x, centre.y, centre.z);
+        let initial = truth * start * perturbation * start.inverse();
+        let options = IcpOptions { max_correspondence_distance: 0.02, max_iterations: 60, ..IcpOptions::default() };
+        let coarse = refine_icp(&source.cloud, &target.cloud, &target.index, &initial, &options).unwrap();
+        let fine = refine_icp(&source.cloud, &target.cloud, &target.index, &coarse.pose, &IcpOptions::default()).unwrap();
+        let (rotation, translation) = common::errors(&fine.pose, &truth);
+        prop_assert!(rotation < 2.0 && translation < 0.005, "{rotation:.2}° {:.2} mm from {angle:.1}°", translation * 1e3);
+    }
+}
