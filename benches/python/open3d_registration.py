@@ -13,8 +13,9 @@ Pipeline, v = voxel_size, for source (model) and target alike:
 1. `voxel_down_sample(v)`;
 2. `estimate_normals(KDTreeSearchParamHybrid(radius=2v, max_nn=30))`; the target's normals are
    then oriented towards the camera origin (`orient_normals_towards_camera_location([0,0,0])`);
-   the model's are left as estimated, i.e. with an arbitrary sign per point (Open3D's
-   default; the tutorial does the same). Any normals in model.ply are dropped before this
+   the model's are propagated with `orient_normals_consistent_tangent_plane(10)` and turned
+   outward, as ipdf-rs orients them (`--model-normals arbitrary` leaves Open3D's per-point
+   arbitrary signs, as the tutorial does). Any normals in model.ply are dropped before this
    step, because `estimate_normals` would otherwise flip the new normals to agree with them;
 3. `compute_fpfh_feature(KDTreeSearchParamHybrid(radius=5v, max_nn=100))`;
 then per trial:
@@ -70,6 +71,9 @@ def parse_args():
     parser.add_argument("--limit", type=int, default=None, help="use only the first N trials")
     parser.add_argument("--seed", type=int, default=0,
                         help="Open3D global seed for trial i's FGR is SEED + i")
+    parser.add_argument("--model-normals", choices=["consistent", "arbitrary"], default="consistent",
+                        help="orient the model's normals consistently and outward (as ipdf-rs "
+                             "does), or leave Open3D's arbitrary signs (as the tutorial does)")
     parser.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     args = parser.parse_args()
     if args.threads < 1 or args.repeat < 1 or (args.limit is not None and args.limit < 0):
@@ -119,11 +123,18 @@ def main():
     icp_criteria = reg.ICPConvergenceCriteria(max_iteration=30)
     point_to_plane = reg.TransformationEstimationPointToPlane()
 
-    def features(cloud, towards_camera):
+    def features(cloud, orientation):
         down = cloud.voxel_down_sample(v)
         down.estimate_normals(normal_param)
-        if towards_camera:
+        if orientation == "camera":
             down.orient_normals_towards_camera_location(np.zeros(3))
+        elif orientation == "consistent":
+            # Propagated over the surface like ipdf-rs' model normals, then turned outward
+            # (Open3D leaves the global sign open).
+            down.orient_normals_consistent_tangent_plane(10)
+            points, normals = np.asarray(down.points), np.asarray(down.normals)
+            if np.mean(np.sum((points - points.mean(axis=0)) * normals, axis=1)) < 0:
+                down.normals = o3d.utility.Vector3dVector(-normals)
         return down, reg.compute_fpfh_feature(down, fpfh_param)
 
     model_ms = float("inf")
@@ -132,12 +143,12 @@ def main():
     model_points_down = 0
     for rep in range(args.repeat):
         t0 = time.perf_counter()
-        model_down, model_fpfh = features(model, towards_camera=False)
+        model_down, model_fpfh = features(model, args.model_normals)
         model_ms = min(model_ms, (time.perf_counter() - t0) * 1e3)
         model_points_down = len(model_down.points)
         for i, (target, truth) in enumerate(zip(targets, truths)):
             t0 = time.perf_counter()
-            target_down, target_fpfh = features(target, towards_camera=True)
+            target_down, target_fpfh = features(target, "camera")
             t1 = time.perf_counter()
             o3d.utility.random.seed(args.seed + i)
             t2 = time.perf_counter()
@@ -201,6 +212,7 @@ def main():
         report = {
             "open3d_version": o3d.__version__,
             "threads": args.threads,
+            "model_normals": args.model_normals,
             "voxel_size": v,
             "trials": len(per_trial),
             "success_rate": success_rate,

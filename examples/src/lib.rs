@@ -6,5 +6,6 @@ pub mod bop;
 mod file_error;
 pub mod npy;
 pub mod png;
+pub mod trials;
 
 pub use file_error::FileError;

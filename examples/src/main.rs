@@ -31,12 +31,15 @@ enum Command {
     Grid(commands::grid::GridArgs),
     /// Render a mesh at a BOP pose into BOP depth (and RGB, mask) PNGs.
     Render(commands::render::RenderArgs),
+    /// Align a source point cloud to a target (FPFH + Fast Global Registration + ICP).
+    Register(commands::register::RegisterArgs),
 }
 
 fn run(cli: &Cli) -> Result<serde_json::Value> {
     match &cli.command {
         Command::Grid(args) => commands::grid::run(args),
         Command::Render(args) => commands::render::run(args, cli.seed),
+        Command::Register(args) => commands::register::run(args, cli.seed),
     }
 }
 

@@ -86,22 +86,24 @@ pub fn compute_fpfh(
         .into_par_iter()
         .map(|i| {
             let mut weighted = [0f32; FPFH_LEN];
-            let mut sums = [0f32; 3];
             for n in neighbourhoods[i]
                 .iter()
                 .filter(|n| n.distance_squared > 0.0)
             {
-                for (bin, value) in spfh[n.index as usize].iter().enumerate() {
-                    let value = value / n.distance_squared;
-                    weighted[bin] += value;
-                    sums[bin / BINS] += value;
+                let weight = n.distance_squared.recip();
+                for (sum, value) in weighted.iter_mut().zip(&spfh[n.index as usize]) {
+                    *sum += weight * value;
                 }
             }
+            // Each weighted histogram rescaled to sum to 100, added to the point's own SPFH.
             let mut out = spfh[i];
-            for (bin, value) in weighted.iter().enumerate() {
-                let sum = sums[bin / BINS];
+            for (out, weighted) in out.chunks_exact_mut(BINS).zip(weighted.chunks_exact(BINS)) {
+                let sum: f32 = weighted.iter().sum();
                 if sum > 0.0 {
-                    out[bin] += value * 100.0 / sum;
+                    let scale = 100.0 / sum;
+                    for (o, w) in out.iter_mut().zip(weighted) {
+                        *o += w * scale;
+                    }
                 }
             }
             out

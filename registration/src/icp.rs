@@ -231,6 +231,24 @@ pub fn refine_icp(
     })
 }
 
+/// Fraction of `source` points (moved by `pose`) with a target point within `max_distance`
+/// (ICP's fitness at that pose, without iterating). `target_index` indexes the target.
+pub fn overlap(
+    source: &[Point3<f32>],
+    target_index: &PointIndex,
+    pose: &Isometry3<f64>,
+    max_distance: f32,
+) -> f64 {
+    if source.is_empty() {
+        return 0.0;
+    }
+    Score::of(
+        &correspondences(source, target_index, pose, max_distance),
+        source.len(),
+    )
+    .fitness
+}
+
 /// For each source point (moved by `pose`), its nearest target point if within `max_distance`.
 fn correspondences(
     source: &[Point3<f32>],
@@ -239,14 +257,11 @@ fn correspondences(
     max_distance: f32,
 ) -> Vec<Option<Neighbour>> {
     let pose = pose.cast::<f32>();
-    let limit = max_distance * max_distance;
     source
         .par_iter()
         .map(|p| {
             let moved = pose * p;
-            target_index
-                .nearest(&[moved.x, moved.y, moved.z])
-                .filter(|n| n.distance_squared <= limit)
+            target_index.nearest_within_radius(&[moved.x, moved.y, moved.z], max_distance)
         })
         .collect()
 }

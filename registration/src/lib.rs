@@ -7,7 +7,7 @@
 //!   [`compute_fpfh`], [`align_fgr`], [`refine_icp`].
 //! - [`prepare_cloud`] runs the first stages once per cloud into a [`PreparedCloud`], so a
 //!   model is described once and registered against many observed clouds with [`register`]
-//!   (several FGR hypotheses, each refined by ICP, the best kept).
+//!   (global hypotheses from FGR, the best by overlap refined by ICP).
 //!
 //! Poses are `Isometry3<f64>` mapping source coordinates into the target frame. Everything is
 //! deterministic for given options (seeds included), whatever the rayon thread count.
@@ -52,9 +52,9 @@ mod voxel;
 
 pub use cloud::PointCloud;
 pub use error::RegistrationError;
-pub use fgr::{FgrAlignment, FgrOptions, align_fgr};
+pub use fgr::{FeatureCorrespondences, FgrAlignment, FgrOptions, align_fgr};
 pub use fpfh::{FPFH_LEN, Fpfh, FpfhOptions, compute_fpfh};
-pub use icp::{Alignment, IcpMethod, IcpOptions, RobustKernel, refine_icp};
+pub use icp::{Alignment, IcpMethod, IcpOptions, RobustKernel, overlap, refine_icp};
 pub use neighbours::{KdIndex, Neighbour, PointIndex};
 pub use normals::{NormalOptions, NormalOrientation, estimate_normals};
 pub use ply::{read_ply, write_ply};

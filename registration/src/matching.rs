@@ -34,21 +34,13 @@ impl FeatureMatches {
             .collect()
     }
 
-    /// Every pair where one side is the other's nearest neighbour (source order, then target
-    /// order for the pairs only the target side found), without duplicates.
-    pub(crate) fn either(&self) -> Vec<(u32, u32)> {
-        let forward = self
-            .to_target
+    /// Each target feature with its nearest source feature, in target order.
+    pub(crate) fn target_to_source(&self) -> Vec<(u32, u32)> {
+        self.to_source
             .iter()
             .enumerate()
-            .map(|(s, &t)| (s as u32, t));
-        let backward = self
-            .to_source
-            .iter()
-            .enumerate()
-            .filter(|&(t, &s)| self.to_target[s as usize] != t as u32)
-            .map(|(t, &s)| (s, t as u32));
-        forward.chain(backward).collect()
+            .map(|(t, &s)| (s, t as u32))
+            .collect()
     }
 }
 
@@ -70,29 +62,45 @@ pub(crate) fn match_features(source: &[Fpfh], target: &[Fpfh]) -> FeatureMatches
         .map(|(block, rows)| {
             let first = (block * BLOCK) as u32;
             let source_matrix = Mat::<f32>::from_fn(rows.len(), FPFH_LEN, |i, j| rows[i][j]);
-            let mut products = Mat::<f32>::zeros(rows.len(), target.len());
+            // Targets × rows, column-major: each source row's products are one contiguous slice.
+            let mut products = Mat::<f32>::zeros(target.len(), rows.len());
             faer::linalg::matmul::matmul(
                 products.as_mut(),
                 Accum::Replace,
-                source_matrix.as_ref(),
-                target_matrix.transpose(),
+                target_matrix.as_ref(),
+                source_matrix.transpose(),
                 1.0,
                 Par::Seq,
             );
-            let mut row_best = vec![(f32::INFINITY, 0u32); rows.len()];
-            let mut column_best = vec![(f32::INFINITY, 0u32); target.len()];
+            let mut row_best = Vec::with_capacity(rows.len());
+            let mut column_distance = vec![f32::INFINITY; target.len()];
+            let mut column_index = vec![0u32; target.len()];
+            let mut distances = vec![0f32; target.len()];
             for (r, row) in rows.iter().enumerate() {
+                // Branch-free passes over contiguous slices, so that they vectorise.
                 let row_norm = squared_norm(row);
-                for (c, column) in column_best.iter_mut().enumerate() {
-                    let distance = row_norm + target_norms[c] - 2.0 * products[(r, c)];
-                    if distance < row_best[r].0 {
-                        row_best[r] = (distance, c as u32);
-                    }
-                    if distance < column.0 {
-                        *column = (distance, first + r as u32);
-                    }
+                for ((d, &norm), &product) in distances
+                    .iter_mut()
+                    .zip(&target_norms)
+                    .zip(products.col_as_slice(r))
+                {
+                    *d = row_norm + norm - 2.0 * product;
+                }
+                let smallest = minimum(&distances);
+                let nearest = distances.iter().position(|&d| d == smallest).unwrap_or(0);
+                row_best.push((smallest, nearest as u32));
+                let row_index = first + r as u32;
+                for ((best, index), &d) in column_distance
+                    .iter_mut()
+                    .zip(&mut column_index)
+                    .zip(&distances)
+                {
+                    let closer = d < *best;
+                    *index = if closer { row_index } else { *index };
+                    *best = if closer { d } else { *best };
                 }
             }
+            let column_best = column_distance.into_iter().zip(column_index).collect();
             (row_best, column_best)
         })
         .collect();
@@ -113,6 +121,22 @@ pub(crate) fn match_features(source: &[Fpfh], target: &[Fpfh]) -> FeatureMatches
             .collect(),
         to_source: column_best.iter().map(|&(_, s)| s).collect(),
     }
+}
+
+/// The smallest value (eight independent lanes, so the loop vectorises); `INFINITY` if empty.
+fn minimum(values: &[f32]) -> f32 {
+    let mut lanes = [f32::INFINITY; 8];
+    let chunks = values.chunks_exact(8);
+    let rest = chunks
+        .remainder()
+        .iter()
+        .fold(f32::INFINITY, |m, &v| m.min(v));
+    for chunk in chunks {
+        for (lane, &v) in lanes.iter_mut().zip(chunk) {
+            *lane = lane.min(v);
+        }
+    }
+    lanes.iter().fold(rest, |m, &v| m.min(v))
 }
 
 fn squared_norm(feature: &Fpfh) -> f32 {

@@ -1,44 +1,52 @@
-//! The whole registration of two prepared clouds: FGR hypotheses, each refined by ICP, the
-//! best kept.
+//! The whole registration of two prepared clouds: global hypotheses (FGR, then consensus
+//! starts), the best by overlap refined coarse-to-fine by ICP.
 
 use std::time::{Duration, Instant};
 
 use nalgebra::Isometry3;
 
 use crate::RegistrationError;
-use crate::fgr::{FgrOptions, align_matched};
-use crate::icp::{Alignment, IcpOptions, refine_icp};
+use crate::fgr::{FeatureCorrespondences, FgrOptions, align_modes};
+use crate::icp::{Alignment, IcpOptions, overlap, refine_icp};
 use crate::matching::match_features;
 use crate::prepare::PreparedCloud;
+
+/// Iteration cap of the coarse ICP stage.
+const COARSE_ITERATIONS: usize = 10;
 
 /// Options of [`register`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RegisterOptions {
-    /// Global alignment; hypothesis `h` uses tuple-test seed `fgr.seed + h`.
+    /// Global alignment.
     pub fgr: FgrOptions,
-    /// Refinement of each hypothesis.
+    /// Refinement (the fine stage).
     pub icp: IcpOptions,
-    /// FGR hypotheses to refine; the one with the highest ICP fitness (then the lowest RMSE)
-    /// wins. One is the plain FGR + ICP pipeline.
+    /// Global hypotheses: FGR's own solution, then up to `hypotheses − 1` consensus starts
+    /// refined by FGR's Gauss–Newton (see [`crate::align_fgr`] for the first alone). The one
+    /// with the largest overlap (fitness at `coarse_factor` × the ICP distance) is refined.
     pub hypotheses: usize,
+    /// ICP first runs (at most 10 iterations) with its correspondence distance multiplied by
+    /// this (1: no coarse stage), so that a global pose a few degrees off still converges.
+    pub coarse_factor: f32,
 }
 
 impl RegisterOptions {
     /// Defaults for clouds prepared at `voxel_size` metres: FGR as in the paper except the
-    /// mutual filter (see [`FgrOptions::mutual_filter`]), μ floor 0.5 voxel (Open3D's
-    /// tutorial), ICP point-to-plane within 1.5 voxels, 3 hypotheses.
+    /// candidates ([`FeatureCorrespondences::TargetToSource`]), μ floor 0.5 voxel (Open3D's
+    /// tutorial), 2 hypotheses, ICP point-to-plane within 6 then 1.5 voxels.
     pub fn for_voxel(voxel_size: f32) -> Self {
         Self {
             fgr: FgrOptions {
                 maximum_correspondence_distance: 0.5 * f64::from(voxel_size),
-                mutual_filter: false,
+                correspondences: FeatureCorrespondences::TargetToSource,
                 ..FgrOptions::default()
             },
             icp: IcpOptions {
                 max_correspondence_distance: 1.5 * voxel_size,
                 ..IcpOptions::default()
             },
-            hypotheses: 3,
+            hypotheses: 2,
+            coarse_factor: 4.0,
         }
     }
 }
@@ -55,22 +63,22 @@ impl Default for RegisterOptions {
 pub struct Registration {
     /// The refined alignment (source → target).
     pub alignment: Alignment,
-    /// The FGR pose it was refined from.
+    /// The global pose it was refined from.
     pub global_pose: Isometry3<f64>,
-    /// Which hypothesis won.
+    /// Which hypothesis that was (0: FGR's own solution).
     pub hypothesis: usize,
-    /// Time spent in feature matching and FGR, all hypotheses.
+    /// Time spent in feature matching and the global stage.
     pub fgr_time: Duration,
-    /// Time spent in ICP, all hypotheses.
+    /// Time spent choosing the hypothesis and in ICP.
     pub icp_time: Duration,
 }
 
-/// Registers `source` to `target` (both from [`crate::prepare_cloud`]): features matched
-/// once, then `hypotheses` FGR runs (different tuple samples) from `initial`, each refined by
-/// ICP against `target`; the best is returned. Deterministic for given options.
+/// Registers `source` to `target` (both from [`crate::prepare_cloud`]) from `initial`:
+/// features matched once, global hypotheses, the one with the largest overlap refined by
+/// ICP (coarse, then fine). Deterministic for given options.
 ///
-/// Errors: bad options, or no hypothesis could be aligned (the last hypothesis' error, e.g.
-/// [`RegistrationError::NoCorrespondences`]).
+/// Errors: bad options; no global hypothesis (e.g. [`RegistrationError::NoCorrespondences`]);
+/// ICP finding no correspondence.
 pub fn register(
     source: &PreparedCloud,
     target: &PreparedCloud,
@@ -84,66 +92,69 @@ pub fn register(
             reason: "must be at least 1",
         });
     }
+    if !(options.coarse_factor.is_finite() && options.coarse_factor >= 1.0) {
+        return Err(RegistrationError::InvalidOption {
+            name: "coarse_factor",
+            value: f64::from(options.coarse_factor),
+            reason: "must be at least 1",
+        });
+    }
     let started = Instant::now();
     let matches = match_features(&source.features, &target.features);
-    let mut fgr_time = started.elapsed();
-    let mut icp_time = Duration::ZERO;
-    let mut best: Option<Registration> = None;
-    let mut last_error = None;
-    for hypothesis in 0..options.hypotheses {
-        let fgr_options = FgrOptions {
-            seed: options.fgr.seed.wrapping_add(hypothesis as u64),
-            ..options.fgr
-        };
-        let started = Instant::now();
-        let global = align_matched(source, target, &matches, initial, &fgr_options);
-        fgr_time += started.elapsed();
-        let global = match global {
-            Ok(global) => global,
-            Err(error) => {
-                last_error = Some(error);
-                continue;
-            }
-        };
-        let started = Instant::now();
-        let refined = refine_icp(
-            &source.cloud,
-            &target.cloud,
-            &target.index,
-            &global.pose,
-            &options.icp,
-        );
-        icp_time += started.elapsed();
-        let alignment = match refined {
-            Ok(alignment) => alignment,
-            Err(error) => {
-                last_error = Some(error);
-                continue;
-            }
-        };
-        let better = best.as_ref().is_none_or(|b| {
-            let a = &b.alignment;
-            alignment.fitness > a.fitness
-                || (alignment.fitness == a.fitness && alignment.inlier_rmse < a.inlier_rmse)
-        });
-        if better {
-            best = Some(Registration {
-                alignment,
-                global_pose: global.pose,
-                hypothesis,
-                fgr_time,
-                icp_time,
-            });
-        }
-    }
-    let mut best = best.ok_or_else(|| {
-        last_error.unwrap_or(RegistrationError::NoCorrespondences {
-            stage: "FGR",
-            found: 0,
-            needed: 10,
+    let modes = align_modes(
+        source,
+        target,
+        &matches,
+        initial,
+        &options.fgr,
+        options.hypotheses,
+    )?;
+    let fgr_time = started.elapsed();
+
+    let started = Instant::now();
+    // The coarse stage only has to reach the fine stage's basin.
+    let coarse = IcpOptions {
+        max_correspondence_distance: options.coarse_factor
+            * options.icp.max_correspondence_distance,
+        max_iterations: options.icp.max_iterations.min(COARSE_ITERATIONS),
+        ..options.icp
+    };
+    let overlaps: Vec<f64> = modes
+        .iter()
+        .map(|mode| {
+            overlap(
+                source.cloud.points(),
+                &target.index,
+                &mode.pose,
+                coarse.max_correspondence_distance,
+            )
         })
-    })?;
-    best.fgr_time = fgr_time;
-    best.icp_time = icp_time;
-    Ok(best)
+        .collect();
+    // The first of the largest overlaps: FGR's own solution wins ties.
+    let hypothesis = (0..modes.len()).fold(0, |best, i| {
+        if overlaps[i] > overlaps[best] {
+            i
+        } else {
+            best
+        }
+    });
+    let global_pose = modes[hypothesis].pose;
+    let mut pose = global_pose;
+    if options.coarse_factor > 1.0 {
+        pose = refine_icp(&source.cloud, &target.cloud, &target.index, &pose, &coarse)?.pose;
+    }
+    let alignment = refine_icp(
+        &source.cloud,
+        &target.cloud,
+        &target.index,
+        &pose,
+        &options.icp,
+    )?;
+    Ok(Registration {
+        alignment,
+        global_pose,
+        hypothesis,
+        fgr_time,
+        icp_time: started.elapsed(),
+    })
 }

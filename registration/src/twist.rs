@@ -1,5 +1,7 @@
 //! Pose solves: Gauss–Newton normal equations in the 6-DoF twist, and closed-form Kabsch.
 
+use std::ops::{AddAssign, SubAssign};
+
 use nalgebra::{
     Isometry3, Matrix3, Matrix6, Point3, Translation3, UnitQuaternion, Vector3, Vector6,
 };
@@ -27,18 +29,30 @@ impl NormalEquations {
         self.jtr += jacobian * (residual * weight);
     }
 
-    /// Residual `moved − target` (3 rows), Jacobian [−[moved]×, I].
+    /// Residual `moved − target` (3 rows), Jacobian [−[moved]×, I]. Accumulated in closed form:
+    /// JᵀJ = [[‖p‖²I − ppᵀ, [p]×], [−[p]×, I]] and Jᵀr = [p × r, r] for p = `moved`.
     pub(crate) fn add_point_to_point(
         &mut self,
         moved: &Vector3<f64>,
         target: &Vector3<f64>,
         weight: f64,
     ) {
-        let residual = moved - target;
-        let [x, y, z] = [moved.x, moved.y, moved.z];
-        self.add_row(Vector6::new(0.0, z, -y, 1.0, 0.0, 0.0), residual.x, weight);
-        self.add_row(Vector6::new(-z, 0.0, x, 0.0, 1.0, 0.0), residual.y, weight);
-        self.add_row(Vector6::new(y, -x, 0.0, 0.0, 0.0, 1.0), residual.z, weight);
+        let residual = (moved - target) * weight;
+        let p = moved;
+        let skew = p.cross_matrix() * weight;
+        let rotational = (Matrix3::identity() * p.norm_squared() - p * p.transpose()) * weight;
+        self.jtj
+            .fixed_view_mut::<3, 3>(0, 0)
+            .add_assign(&rotational);
+        self.jtj.fixed_view_mut::<3, 3>(0, 3).add_assign(&skew);
+        self.jtj.fixed_view_mut::<3, 3>(3, 0).sub_assign(&skew);
+        self.jtj
+            .fixed_view_mut::<3, 3>(3, 3)
+            .add_assign(&(Matrix3::identity() * weight));
+        self.jtr
+            .fixed_rows_mut::<3>(0)
+            .add_assign(&p.cross(&residual));
+        self.jtr.fixed_rows_mut::<3>(3).add_assign(&residual);
     }
 
     /// Residual `(moved − target) · normal` (1 row), Jacobian [moved × normal, normal].
@@ -162,6 +176,25 @@ mod tests {
             }
             prop_assert!((pose.to_homogeneous() - closed_form.to_homogeneous()).amax() < 1e-9);
         }
+    }
+
+    /// The closed-form accumulation equals the sum of the three Jacobian rows' outer products.
+    #[test]
+    fn point_to_point_accumulation_matches_row_form() {
+        let (p, q, w) = (
+            Vector3::new(0.3, -0.2, 0.5),
+            Vector3::new(0.1, 0.4, -0.3),
+            0.7,
+        );
+        let mut closed = NormalEquations::new();
+        closed.add_point_to_point(&p, &q, w);
+        let mut rows = NormalEquations::new();
+        let r = p - q;
+        rows.add_row(Vector6::new(0.0, p.z, -p.y, 1.0, 0.0, 0.0), r.x, w);
+        rows.add_row(Vector6::new(-p.z, 0.0, p.x, 0.0, 1.0, 0.0), r.y, w);
+        rows.add_row(Vector6::new(p.y, -p.x, 0.0, 0.0, 0.0, 1.0), r.z, w);
+        assert!((closed.jtj - rows.jtj).amax() < 1e-12);
+        assert!((closed.jtr - rows.jtr).amax() < 1e-12);
     }
 
     #[test]

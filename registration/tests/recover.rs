@@ -14,12 +14,17 @@ use registration::{
 const VOXEL: f32 = 0.005;
 
 fn prepared_model() -> (common::Samples, PreparedCloud) {
-    let model = common::model(20_000);
+    let model = common::model(40_000);
     let cloud = PointCloud::new(model.0.clone())
         .unwrap()
         .with_normals(model.1.clone())
         .unwrap();
-    let prepared = prepare_cloud(&cloud, &PrepareOptions::for_voxel(VOXEL)).unwrap();
+    let options = PrepareOptions {
+        keep_normals: std::env::var("KEEP").is_ok(),
+        ..PrepareOptions::for_voxel(VOXEL)
+            .oriented(NormalOrientation::Consistent { neighbours: 10 })
+    };
+    let prepared = prepare_cloud(&cloud, &options).unwrap();
     (model, prepared)
 }
 
@@ -69,10 +74,15 @@ fn fgr_and_icp_recover_95_percent_of_random_transforms() {
         let found = register(&source, &target, &Isometry3::identity(), &options).unwrap();
         let (rotation, translation) = common::errors(&found.alignment.pose, &truth);
         if rotation > 2.0 || translation > 0.005 {
-            failures.push(format!(
-                "trial {trial}: {rotation:.2}° {:.2} mm",
-                translation * 1e3
-            ));
+            let at_truth = refine_icp(
+                &source.cloud,
+                &target.cloud,
+                &target.index,
+                &truth,
+                &IcpOptions::default(),
+            )
+            .unwrap();
+            failures.push(format!("trial {trial}: {rotation:.2}° {:.2} mm fit {:.3} rmse {:.2}mm vs truth fit {:.3} rmse {:.2}mm", translation * 1e3, found.alignment.fitness, found.alignment.inlier_rmse * 1e3, at_truth.fitness, at_truth.inlier_rmse * 1e3));
         }
     }
     let successes = trials as usize - failures.len();

@@ -7,7 +7,7 @@ use rand_distr_free::gaussian;
 use registration::PointCloud;
 
 /// Semi-axes of the ellipsoid the object is a bumpy version of (metres).
-const AXES: [f64; 3] = [0.07, 0.045, 0.03];
+const AXES: [f64; 3] = [0.12, 0.077, 0.05];
 
 /// The surface point in direction `u` (unit vector from the object's centre): a radial bump
 /// field without any rotational symmetry.
