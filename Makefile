@@ -31,7 +31,7 @@ bench: setup
 	GLIBC_TUNABLES=glibc.malloc.hugetlb=1 $(CARGO) bench -p benches
 
 # The Python baselines the benches are compared with (healpy + numpy; Open3D's Embree ray
-# casting for the render benches), measured once.
+# casting for the render benches; Open3D's FPFH + FGR + ICP on the registration trials).
 $(BENCH_VENV)/.ready:
 	python3 -m venv $(BENCH_VENV)
 	$(BENCH_VENV)/bin/pip install --quiet healpy numpy
@@ -47,3 +47,6 @@ bench-python: $(BENCH_VENV)/.ready $(BENCH_VENV)/.ready-open3d
 	$(BENCH_VENV)/bin/python benches/python/healpy_grid.py
 	mkdir -p runs/bench
 	$(BENCH_VENV)/bin/python benches/python/open3d_raycast.py --json runs/bench/open3d_raycast.json
+	$(CARGO) run --release -p examples --example registration_trials -- --out runs/bench/registration --repeat 3
+	$(BENCH_VENV)/bin/python benches/python/open3d_registration.py runs/bench/registration --repeat 3 \
+		--json runs/bench/open3d_registration.json

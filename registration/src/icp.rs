@@ -291,3 +291,103 @@ impl Score {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::Vector3;
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    use super::*;
+    use crate::normals::{NormalOptions, NormalOrientation, estimate_normals};
+
+    /// A closed, lumpy, non-symmetric surface (~1.5 mm spacing) and a small rigid motion.
+    fn patch() -> (PointCloud, Isometry3<f64>) {
+        let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
+        let points = (0..8000)
+            .map(|i| {
+                let z = 1.0 - 2.0 * (i as f32 + 0.5) / 8000.0;
+                let (r, a) = ((1.0 - z * z).sqrt(), golden * i as f32);
+                let u = Vector3::new(r * a.cos(), r * a.sin(), z);
+                let radius =
+                    0.05 * (1.0 + 0.3 * u.x + 0.2 * (3.0 * u.y + 1.0).sin() * (2.0 * u.z).cos());
+                Point3::new(0.0, 0.0, 0.5) + u.component_mul(&Vector3::new(1.0, 0.8, 0.6)) * radius
+            })
+            .collect();
+        let motion = Isometry3::new(
+            Vector3::new(0.002, -0.001, 0.0015),
+            Vector3::new(0.03, -0.02, 0.04),
+        );
+        (PointCloud::new(points).unwrap(), motion)
+    }
+
+    fn with_normals(cloud: &PointCloud) -> (PointCloud, PointIndex) {
+        let index = PointIndex::from_points(cloud.points());
+        let options = NormalOptions {
+            radius: 0.006,
+            max_neighbours: 30,
+            orientation: NormalOrientation::Consistent { neighbours: 10 },
+        };
+        (estimate_normals(cloud, &index, &options).unwrap(), index)
+    }
+
+    #[test]
+    fn both_methods_recover_a_small_motion() {
+        let (source, truth) = patch();
+        let (target, index) = with_normals(&source.transformed(&truth));
+        for method in [IcpMethod::PointToPoint, IcpMethod::PointToPlane] {
+            let options = IcpOptions {
+                method,
+                max_correspondence_distance: 0.01,
+                max_iterations: 100,
+                ..IcpOptions::default()
+            };
+            let found =
+                refine_icp(&source, &target, &index, &Isometry3::identity(), &options).unwrap();
+            let error = found.pose.inverse() * truth;
+            let (angle, shift) = (error.rotation.angle(), error.translation.vector.norm());
+            assert!(
+                angle < 2e-3 && shift < 2e-4,
+                "{method:?}: {angle} rad, {shift} m"
+            );
+            assert!(
+                found.fitness > 0.95 && found.inlier_rmse < 5e-4,
+                "{method:?}: {found:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_robust_kernel_ignores_outliers() {
+        let (clean, truth) = patch();
+        let (target, index) = with_normals(&clean.transformed(&truth));
+        // One source point in three lifted 4–8 mm along +z: least squares is pulled off the
+        // true pose (where the search starts), a robust kernel much less.
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let mut points = clean.points().to_vec();
+        for p in points.iter_mut().step_by(3) {
+            p.z += 0.004 + 0.004 * rng.random::<f32>();
+        }
+        let source = PointCloud::new(points).unwrap();
+        let error_with = |kernel| {
+            let options = IcpOptions {
+                kernel,
+                max_correspondence_distance: 0.01,
+                max_iterations: 100,
+                ..IcpOptions::default()
+            };
+            let found = refine_icp(&source, &target, &index, &truth, &options).unwrap();
+            (found.pose.inverse() * truth).translation.vector.norm()
+        };
+        let (plain, robust) = (
+            error_with(None),
+            error_with(Some(RobustKernel::Tukey(0.003))),
+        );
+        assert!(
+            robust < 0.5 * plain,
+            "Tukey {robust} vs least squares {plain}"
+        );
+        assert!(error_with(Some(RobustKernel::Huber(0.0005))) < plain);
+        assert!(error_with(Some(RobustKernel::Cauchy(0.0005))) < plain);
+    }
+}

@@ -7,8 +7,8 @@ use proptest::prelude::*;
 use proptest::strategy::ValueTree;
 use proptest::test_runner::TestRunner;
 use registration::{
-    IcpOptions, NormalOrientation, PointCloud, PrepareOptions, PreparedCloud, RegisterOptions,
-    prepare_cloud, refine_icp, register,
+    FeatureCorrespondences, FgrOptions, IcpOptions, NormalOrientation, PointCloud, PrepareOptions,
+    PreparedCloud, RegisterOptions, align_fgr, prepare_cloud, refine_icp, register,
 };
 
 const VOXEL: f32 = 0.005;
@@ -90,6 +90,41 @@ fn fgr_and_icp_recover_95_percent_of_random_transforms() {
         successes * 100 >= 95 * trials as usize,
         "{successes}/{trials} recovered; failures: {failures:?}"
     );
+}
+
+/// FGR alone (its own solution, no consensus starts, no ICP), with the paper's mutual
+/// filter and with target-to-source candidates: most views land within 10° and 1 cm.
+#[test]
+fn fgr_alone_lands_near_most_views() {
+    let (model, source) = prepared_model();
+    let mut runner = TestRunner::deterministic();
+    let strategy = poses();
+    let mut near = [0; 2];
+    let trials = 10;
+    for trial in 0..trials {
+        let truth = strategy.new_tree(&mut runner).unwrap().current();
+        let target = prepared_view(&model, &truth, trial);
+        for (k, correspondences) in [
+            FeatureCorrespondences::Mutual,
+            FeatureCorrespondences::TargetToSource,
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let options = FgrOptions {
+                correspondences,
+                seed: trial,
+                ..RegisterOptions::default().fgr
+            };
+            let Ok(found) = align_fgr(&source, &target, &Isometry3::identity(), &options) else {
+                continue;
+            };
+            let (rotation, translation) = common::errors(&found.pose, &truth);
+            near[k] += usize::from(rotation < 10.0 && translation < 0.01);
+        }
+    }
+    assert!(near[1] >= 7, "target-to-source: {}/{trials} near", near[1]);
+    assert!(near[0] >= 3, "mutual: {}/{trials} near", near[0]);
 }
 
 #[test]
