@@ -86,6 +86,7 @@ fn fgr_and_icp_recover_95_percent_of_random_transforms() {
         }
     }
     let successes = trials as usize - failures.len();
+    eprintln!("{successes}/{trials} recovered; failures: {failures:?}");
     assert!(
         successes * 100 >= 95 * trials as usize,
         "{successes}/{trials} recovered; failures: {failures:?}"
@@ -123,6 +124,10 @@ fn fgr_alone_lands_near_most_views() {
             near[k] += usize::from(rotation < 10.0 && translation < 0.01);
         }
     }
+    eprintln!(
+        "FGR alone within 10° and 1 cm: mutual {}/{trials}, target-to-source {}/{trials}",
+        near[0], near[1]
+    );
     assert!(near[1] >= 7, "target-to-source: {}/{trials} near", near[1]);
     assert!(near[0] >= 3, "mutual: {}/{trials} near", near[0]);
 }
