@@ -155,6 +155,12 @@ fn bad_inputs_fail_with_one_line_naming_the_cause() {
     let mut args = register_args(&clouds.source, &clouds.target);
     args.push("--voxel=0");
     assert!(error_of(&ipdf(&args)).contains("voxel_size"));
+    let mut args = register_args(&clouds.source, &clouds.target);
+    args.push("--scale=0");
+    assert!(error_of(&ipdf(&args)).contains("--scale"));
+    let mut args = register_args(&clouds.source, &clouds.target);
+    args.extend(["--hypotheses", "0"]);
+    assert!(error_of(&ipdf(&args)).contains("hypotheses"));
 
     let initial = dir.join("initial.json");
     std::fs::write(

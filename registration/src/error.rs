@@ -89,3 +89,28 @@ pub enum RegistrationError {
         reason: String,
     },
 }
+
+/// `value` if it is a positive, finite length in metres; else `InvalidOption` naming `name`.
+pub(crate) fn positive_metres(name: &'static str, value: f32) -> Result<f32, RegistrationError> {
+    if value.is_finite() && value > 0.0 {
+        Ok(value)
+    } else {
+        Err(RegistrationError::InvalidOption {
+            name,
+            value: f64::from(value),
+            reason: "must be a positive number of metres",
+        })
+    }
+}
+
+/// `count` if it is at least 1; else `InvalidOption` naming `name`.
+pub(crate) fn at_least_one(
+    name: &'static str,
+    count: usize,
+) -> Result<std::num::NonZeroUsize, RegistrationError> {
+    std::num::NonZeroUsize::new(count).ok_or(RegistrationError::InvalidOption {
+        name,
+        value: 0.0,
+        reason: "must be at least 1",
+    })
+}

@@ -112,7 +112,8 @@ pub struct FgrAlignment {
     pub pose: Isometry3<f64>,
     /// Feature correspondences before the tuple test.
     pub candidates: usize,
-    /// Correspondences optimised over (after the tuple test, triples counted three times).
+    /// Correspondences optimised over: FGR's own solution, the tuple-test pairs (triples
+    /// counted three times); a consensus start, all candidates.
     pub correspondences: usize,
 }
 
@@ -121,8 +122,8 @@ pub struct FgrAlignment {
 /// `initial` is applied to the source first (the returned pose includes it): a random
 /// initial pose gives FGR's optimisation a different start, as the pseudo-labeller does.
 /// Steps (paper Sec. 3): nearest neighbours in feature space (mutual ones with
-/// [`FeatureCorrespondences::Mutual`]), the tuple test, then Gauss–Newton on the twist with Geman–McClure
-/// weights (μ / (r² + μ))², μ decreasing.
+/// [`FeatureCorrespondences::Mutual`]), the tuple test, then Gauss–Newton on the twist with
+/// Geman–McClure weights (μ / (r² + μ))², μ decreasing.
 ///
 /// Errors: bad options; fewer than 10 correspondences survive; singular normal equations.
 pub fn align_fgr(
@@ -185,10 +186,13 @@ pub(crate) fn align_modes(
         });
     }
     // Normalise: centre each cloud, scale both by the farthest point (paper Sec. 4).
-    let mean = |points: &[Point3<f64>]| {
-        points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / points.len() as f64
+    let (Some(source_mean), Some(target_mean)) = (source.cloud.centroid(), target.cloud.centroid())
+    else {
+        return Err(RegistrationError::EmptyCloud {
+            cloud: "source or target",
+        });
     };
-    let (source_mean, target_mean) = (mean(&source_points), mean(&target_points));
+    let (source_mean, target_mean) = ((initial * source_mean).coords, target_mean.coords);
     let scale = if options.use_absolute_scale {
         1.0
     } else {

@@ -1,10 +1,9 @@
 //! Fast Point Feature Histograms (Rusu, Blodow, Beetz, ICRA 2009), 33 bins.
 
-use std::num::NonZeroUsize;
-
 use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 
+use crate::error::{at_least_one, positive_metres};
 use crate::neighbours::{Neighbour, PointIndex};
 use crate::{PointCloud, RegistrationError};
 
@@ -54,19 +53,8 @@ pub fn compute_fpfh(
     if cloud.is_empty() {
         return Err(RegistrationError::EmptyCloud { cloud: "input" });
     }
-    if !(options.radius.is_finite() && options.radius > 0.0) {
-        return Err(RegistrationError::InvalidOption {
-            name: "radius",
-            value: f64::from(options.radius),
-            reason: "must be a positive number of metres",
-        });
-    }
-    let max_neighbours =
-        NonZeroUsize::new(options.max_neighbours).ok_or(RegistrationError::InvalidOption {
-            name: "max_neighbours",
-            value: 0.0,
-            reason: "must be at least 1",
-        })?;
+    positive_metres("radius", options.radius)?;
+    let max_neighbours = at_least_one("max_neighbours", options.max_neighbours)?;
     let points = cloud.points();
     let neighbourhoods: Vec<Vec<Neighbour>> = points
         .par_iter()

@@ -3,6 +3,7 @@
 use nalgebra::{Isometry3, Point3, Vector3};
 use rayon::prelude::*;
 
+use crate::error::positive_metres;
 use crate::neighbours::{Neighbour, PointIndex};
 use crate::twist::{NormalEquations, kabsch};
 use crate::{PointCloud, RegistrationError};
@@ -124,15 +125,10 @@ pub fn refine_icp(
     if target.is_empty() {
         return Err(RegistrationError::EmptyCloud { cloud: "target" });
     }
-    if !(options.max_correspondence_distance.is_finite()
-        && options.max_correspondence_distance > 0.0)
-    {
-        return Err(RegistrationError::InvalidOption {
-            name: "max_correspondence_distance",
-            value: f64::from(options.max_correspondence_distance),
-            reason: "must be a positive number of metres",
-        });
-    }
+    positive_metres(
+        "max_correspondence_distance",
+        options.max_correspondence_distance,
+    )?;
     if let Some(kernel) = options.kernel
         && !(kernel.scale().is_finite() && kernel.scale() > 0.0)
     {

@@ -55,7 +55,7 @@ pub use error::RegistrationError;
 pub use fgr::{FeatureCorrespondences, FgrAlignment, FgrOptions, align_fgr};
 pub use fpfh::{FPFH_LEN, Fpfh, FpfhOptions, compute_fpfh};
 pub use icp::{Alignment, IcpMethod, IcpOptions, RobustKernel, overlap, refine_icp};
-pub use neighbours::{KdIndex, Neighbour, PointIndex};
+pub use neighbours::{Neighbour, PointIndex};
 pub use normals::{NormalOptions, NormalOrientation, estimate_normals};
 pub use ply::{read_ply, write_ply};
 pub use prepare::{PrepareOptions, PreparedCloud, prepare_cloud};

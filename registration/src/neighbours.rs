@@ -1,4 +1,4 @@
-//! Neighbour search: an immutable k-d tree (kiddo) over 3-D points or K-D feature vectors.
+//! Neighbour search: an immutable k-d tree (kiddo) over 3-D points.
 //!
 //! `kiddo` was measured against parry3d's BVH on this crate's workload (radius queries of
 //! FPFH and normals, 5 mm voxels): see `benches/benches/registration.rs`, group `neighbours`.
@@ -17,25 +17,20 @@ pub struct Neighbour {
     pub distance_squared: f32,
 }
 
-/// A k-d tree over `K`-dimensional f32 vectors (points: `K = 3`; FPFH features: `K = 33`).
-pub struct KdIndex<const K: usize> {
-    tree: Option<ImmutableKdTree<f32, K>>,
+/// A k-d tree over 3-D points (f32, metres).
+pub struct PointIndex {
+    tree: Option<ImmutableKdTree<f32, 3>>,
 }
 
-impl<const K: usize> std::fmt::Debug for KdIndex<K> {
+impl std::fmt::Debug for PointIndex {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("KdIndex")
-            .field("dimensions", &K)
-            .finish_non_exhaustive()
+        f.debug_struct("PointIndex").finish_non_exhaustive()
     }
 }
 
-/// A k-d tree over 3-D points.
-pub type PointIndex = KdIndex<3>;
-
-impl<const K: usize> KdIndex<K> {
-    /// Indexes `entries`; an empty slice gives an index that finds nothing.
-    pub fn new(entries: &[[f32; K]]) -> Self {
+impl PointIndex {
+    /// Indexes `entries` (x, y, z); an empty slice gives an index that finds nothing.
+    pub fn new(entries: &[[f32; 3]]) -> Self {
         let tree = if entries.is_empty() {
             None
         } else {
@@ -44,8 +39,14 @@ impl<const K: usize> KdIndex<K> {
         Self { tree }
     }
 
+    /// Indexes 3-D points.
+    pub fn from_points(points: &[Point3<f32>]) -> Self {
+        let entries: Vec<[f32; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
+        Self::new(&entries)
+    }
+
     /// The nearest entry to `query`, or `None` for an empty index.
-    pub fn nearest(&self, query: &[f32; K]) -> Option<Neighbour> {
+    pub fn nearest(&self, query: &[f32; 3]) -> Option<Neighbour> {
         let tree = self.tree.as_ref()?;
         let found = tree
             .query(query)
@@ -59,7 +60,7 @@ impl<const K: usize> KdIndex<K> {
 
     /// The nearest entry within `radius` of `query`, if any. Faster than [`Self::nearest`]
     /// for queries far from every entry: the search stops at the radius.
-    pub fn nearest_within_radius(&self, query: &[f32; K], radius: f32) -> Option<Neighbour> {
+    pub fn nearest_within_radius(&self, query: &[f32; 3], radius: f32) -> Option<Neighbour> {
         let tree = self.tree.as_ref()?;
         let found = tree
             .query(query)
@@ -77,7 +78,7 @@ impl<const K: usize> KdIndex<K> {
     /// Open3D's "hybrid" search.
     pub fn nearest_within(
         &self,
-        query: &[f32; K],
+        query: &[f32; 3],
         radius: f32,
         max_neighbours: NonZeroUsize,
         out: &mut Vec<Neighbour>,
@@ -95,14 +96,6 @@ impl<const K: usize> KdIndex<K> {
             index: n.item,
             distance_squared: n.distance,
         }));
-    }
-}
-
-impl PointIndex {
-    /// Indexes 3-D points.
-    pub fn from_points(points: &[Point3<f32>]) -> Self {
-        let entries: Vec<[f32; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
-        Self::new(&entries)
     }
 }
 
@@ -135,7 +128,7 @@ mod tests {
         let points: Vec<[f32; 3]> = (0..2000)
             .map(|_| [rng.random(), rng.random(), rng.random()])
             .collect();
-        let index = KdIndex::new(&points);
+        let index = PointIndex::new(&points);
         let mut out = Vec::new();
         for query in points.iter().step_by(97) {
             index.nearest_within(query, 0.08, NonZeroUsize::new(10).unwrap(), &mut out);

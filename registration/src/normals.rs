@@ -7,6 +7,7 @@ use std::num::NonZeroUsize;
 use nalgebra::{Matrix3, Point3, SymmetricEigen, Vector3};
 use rayon::prelude::*;
 
+use crate::error::{at_least_one, positive_metres};
 use crate::neighbours::{Neighbour, PointIndex};
 use crate::{PointCloud, RegistrationError};
 
@@ -62,19 +63,8 @@ pub fn estimate_normals(
     if cloud.is_empty() {
         return Err(RegistrationError::EmptyCloud { cloud: "input" });
     }
-    if !(options.radius.is_finite() && options.radius > 0.0) {
-        return Err(RegistrationError::InvalidOption {
-            name: "radius",
-            value: f64::from(options.radius),
-            reason: "must be a positive number of metres",
-        });
-    }
-    let max_neighbours =
-        NonZeroUsize::new(options.max_neighbours).ok_or(RegistrationError::InvalidOption {
-            name: "max_neighbours",
-            value: 0.0,
-            reason: "must be at least 1",
-        })?;
+    positive_metres("radius", options.radius)?;
+    let max_neighbours = at_least_one("max_neighbours", options.max_neighbours)?;
     let points = cloud.points();
     let (fitted, sizes): (Vec<Option<Vector3<f32>>>, Vec<usize>) = points
         .par_iter()
@@ -228,18 +218,27 @@ mod tests {
             .collect()
     }
 
-    #[test]
-    fn sphere_normals_are_radial_and_face_the_viewpoint() {
+    /// The sphere's points and the normals `orientation` gives them (2 cm neighbourhoods).
+    fn sphere_normals(orientation: NormalOrientation) -> (Vec<Point3<f32>>, Vec<Vector3<f32>>) {
         let points = sphere();
         let cloud = PointCloud::new(points.clone()).unwrap();
         let index = PointIndex::from_points(&points);
         let options = NormalOptions {
             radius: 0.02,
-            ..Default::default()
+            max_neighbours: 30,
+            orientation,
         };
         let with = estimate_normals(&cloud, &index, &options).unwrap();
+        let normals = with.normals().unwrap().to_vec();
+        (points, normals)
+    }
+
+    #[test]
+    fn sphere_normals_are_radial_and_face_the_viewpoint() {
+        let (points, normals) =
+            sphere_normals(NormalOrientation::TowardsViewpoint(Point3::origin()));
         let centre = Point3::new(0.0, 0.0, 1.0);
-        for (p, n) in points.iter().zip(with.normals().unwrap()) {
+        for (p, n) in points.iter().zip(&normals) {
             let radial = (p - centre).normalize();
             assert!(n.dot(&radial).abs() > 0.99, "normal {n} at {p}");
             assert!(n.dot(&(Point3::origin() - p)) >= 0.0);
@@ -248,17 +247,9 @@ mod tests {
 
     #[test]
     fn propagation_makes_sphere_normals_all_outward() {
-        let points = sphere();
-        let cloud = PointCloud::new(points.clone()).unwrap();
-        let index = PointIndex::from_points(&points);
-        let options = NormalOptions {
-            radius: 0.02,
-            max_neighbours: 30,
-            orientation: NormalOrientation::Consistent { neighbours: 8 },
-        };
-        let with = estimate_normals(&cloud, &index, &options).unwrap();
+        let (points, normals) = sphere_normals(NormalOrientation::Consistent { neighbours: 8 });
         let centre = Point3::new(0.0, 0.0, 1.0);
-        for (p, n) in points.iter().zip(with.normals().unwrap()) {
+        for (p, n) in points.iter().zip(&normals) {
             assert!(
                 n.dot(&(p - centre)) > 0.0,
                 "normal {n} at {p} points inward"

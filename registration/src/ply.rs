@@ -178,6 +178,14 @@ mod tests {
             message.contains("bad.ply") && message.contains("file"),
             "{message}"
         );
+        let with_normals = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+            property float z\nproperty float nx\nproperty float ny\nproperty float nz\nend_header\n";
+        std::fs::write(&path, format!("{with_normals}0 0 0 0 0 0\n")).unwrap();
+        let message = read_ply(&path, 1.0).unwrap_err().to_string();
+        assert!(
+            message.contains("vertex[0].nx") && message.contains("zero-length"),
+            "{message}"
+        );
         let missing = read_ply(&dir.path().join("none.ply"), 1.0)
             .unwrap_err()
             .to_string();

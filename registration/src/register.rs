@@ -6,6 +6,7 @@ use std::time::{Duration, Instant};
 use nalgebra::Isometry3;
 
 use crate::RegistrationError;
+use crate::error::at_least_one;
 use crate::fgr::{FeatureCorrespondences, FgrOptions, align_modes};
 use crate::icp::{Alignment, IcpOptions, overlap, refine_icp};
 use crate::matching::match_features;
@@ -85,13 +86,7 @@ pub fn register(
     initial: &Isometry3<f64>,
     options: &RegisterOptions,
 ) -> Result<Registration, RegistrationError> {
-    if options.hypotheses == 0 {
-        return Err(RegistrationError::InvalidOption {
-            name: "hypotheses",
-            value: 0.0,
-            reason: "must be at least 1",
-        });
-    }
+    at_least_one("hypotheses", options.hypotheses)?;
     if !(options.coarse_factor.is_finite() && options.coarse_factor >= 1.0) {
         return Err(RegistrationError::InvalidOption {
             name: "coarse_factor",

@@ -3,6 +3,7 @@
 use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 
+use crate::error::positive_metres;
 use crate::{PointCloud, RegistrationError};
 
 /// Replaces the points in each occupied cube of side `voxel_size` (metres, grid aligned with the
@@ -25,13 +26,7 @@ pub fn downsample_voxel(
     cloud: &PointCloud,
     voxel_size: f32,
 ) -> Result<PointCloud, RegistrationError> {
-    if !(voxel_size.is_finite() && voxel_size > 0.0) {
-        return Err(RegistrationError::InvalidOption {
-            name: "voxel_size",
-            value: f64::from(voxel_size),
-            reason: "must be a positive number of metres",
-        });
-    }
+    positive_metres("voxel_size", voxel_size)?;
     if cloud.is_empty() {
         return Err(RegistrationError::EmptyCloud { cloud: "input" });
     }
