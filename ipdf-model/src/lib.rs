@@ -1,31 +1,74 @@
-//! Implicit-PDF (Murphy et al., 2021) on libtorch through `tch`: an image-conditioned,
-//! unnormalised log-density F(R, I) over SO(3). The model itself is filled by its own issue;
-//! this crate currently pins and checks the libtorch link.
+//! Implicit-PDF (Murphy et al., ICML 2021) on libtorch through `tch`: an image-conditioned,
+//! unnormalised log-density `F(R, I)` over SO(3), trained on *sets* of rotation labels so that
+//! it learns every orientation an object is indistinguishable under.
+//!
+//! - [`ImplicitPdf`]: an image encoder ([`EncoderKind`]: ResNet-18, ResNet-18 cut after stage
+//!   3, ConvNeXt-Tiny, a small CNN; torchvision parameter names, [`load_backbone`] reads
+//!   pretrained `.safetensors`), the positional encoding of the rotation query
+//!   ([`encode_rotations`]) and the IPDF head. The image term is computed once per image and
+//!   broadcast over all queries.
+//! - [`Trainer`]: one step = a query set ([`QuerySampling`]: a rotated level-2 grid or uniform
+//!   rotations) moved so that it holds a label exactly, a softmax over the queries, and the
+//!   negative log-likelihood of the label set ([`LabelLoss`], [`set_nll`]) as a true density
+//!   (cell volume `π² / N`). Adam with warm-up and cosine decay, gradient clipping, occlusion
+//!   and colour augmentation ([`Augmentation`]); seeded. [`fit`] adds epochs, validation LLH,
+//!   `train_log.csv` and checkpoints (`.safetensors` + JSON, atomic, resumable).
+//! - [`Predictor`]: the normalised distribution on a grid level (chunked), hierarchical
+//!   refinement ([`refine`]: level 2, then only the cells holding the mass), and the most
+//!   likely rotation by gradient ascent ([`Predictor::argmax`]).
 //!
 //! ```
-//! let device = ipdf_model::default_device();
-//! let x = tch::Tensor::from_slice(&[1.0f32, 2.0, 3.0]).to_device(device);
-//! assert_eq!(f32::try_from(x.sum(tch::Kind::Float)).unwrap(), 6.0);
+//! use ipdf_model::{ImplicitPdf, ModelConfig, Predictor, RefineOptions, TrainOptions, Trainer};
+//! use nalgebra::UnitQuaternion;
+//! use tch::{Device, Kind, Tensor};
+//!
+//! let model = ImplicitPdf::new(ModelConfig::small(32), Device::Cpu)?;
+//! let mut trainer = Trainer::new(model, TrainOptions::default())?;
+//! let images = Tensor::rand([2, 3, 32, 32], (Kind::Float, Device::Cpu));
+//! // The first image looks the same under a half turn about z: both rotations are labels.
+//! let half_turn = UnitQuaternion::from_euler_angles(0.0, 0.0, std::f64::consts::PI);
+//! let labels = vec![vec![UnitQuaternion::identity(), half_turn], vec![half_turn]];
+//! let report = trainer.train_step(&images, &labels)?;
+//! assert!(report.loss.is_finite());
+//!
+//! let model = trainer.into_model();
+//! let mut predictor = Predictor::new(&model);
+//! let masses = predictor.probabilities(&images.get(0), 1)?; // 576 cells
+//! assert!((masses.iter().sum::<f64>() - 1.0).abs() < 1e-6);
+//! let refined = predictor.hierarchical(&images.get(0), &RefineOptions { level: 3, ..Default::default() })?;
+//! assert!(refined.queries < 4_608 + 2 * 8 * 576 + 1);
+//! # Ok::<(), ipdf_model::ModelError>(())
 //! ```
+mod augment;
+mod checkpoint;
+mod crop;
+mod cuda;
+mod encoder;
+mod encoding;
+mod error;
+mod fit;
+mod head;
+mod layers;
+mod loss;
+mod model;
+mod optim;
+mod predict;
+mod pretrained;
+mod refine;
+mod train;
 
-/// The device new tensors and models should live on: the first CUDA device when libtorch has
-/// CUDA and one is visible, the CPU otherwise.
-pub fn default_device() -> tch::Device {
-    tch::Device::cuda_if_available()
-}
-
-#[cfg(test)]
-mod tests {
-    use tch::{Kind, Tensor};
-
-    #[test]
-    fn libtorch_runs_a_matrix_product() {
-        let a = Tensor::from_slice(&[1.0f32, 2.0, 3.0, 4.0]).reshape([2, 2]);
-        let b = a.matmul(&a.transpose(0, 1)).reshape([-1]);
-        assert_eq!(
-            Vec::<f32>::try_from(&b).unwrap(),
-            vec![5.0, 11.0, 11.0, 25.0]
-        );
-        assert_eq!(b.kind(), Kind::Float);
-    }
-}
+pub use augment::{Augmentation, augment};
+pub use checkpoint::{CHECKPOINT_FILE, CheckpointInfo};
+pub use crop::{CropOptions, crop_object, crops_to_tensor};
+pub use cuda::{default_device, load_cuda_backend};
+pub use encoder::EncoderKind;
+pub use encoding::{encode_rotations, encoded_len, rotations_to_tensor};
+pub use error::ModelError;
+pub use fit::{EpochReport, FitOptions, LabelledImages, TRAIN_LOG, fit, validation_llh};
+pub use loss::{LabelLoss, QuerySampling, label_set_from_matrices, set_nll};
+pub use model::{ImplicitPdf, ModelConfig};
+pub use optim::LearningRateSchedule;
+pub use predict::{Argmax, ArgmaxOptions, Predictor};
+pub use pretrained::load_backbone;
+pub use refine::{CellMasses, RefineOptions, refine};
+pub use train::{StepReport, TrainOptions, Trainer};

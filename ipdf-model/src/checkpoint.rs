@@ -1,0 +1,281 @@
+//! Checkpoints: a folder with `checkpoint.json` (configuration, training options, step, and
+//! the names of the tensor files), `model-<step>.safetensors` and, while training,
+//! `optimizer-<step>.safetensors` (Adam's moments). Tensor files are written under a temporary
+//! name and renamed; `checkpoint.json` is renamed last, so a killed write leaves the previous
+//! checkpoint intact. Files of older steps are removed after the new JSON is in place.
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+use tch::{Device, Tensor, nn};
+
+use crate::train::{TrainOptions, Trainer};
+use crate::{ImplicitPdf, ModelConfig, ModelError};
+
+/// The name of a checkpoint's JSON file.
+pub const CHECKPOINT_FILE: &str = "checkpoint.json";
+const FORMAT: &str = "ipdf-rs checkpoint 1";
+
+/// The contents of `checkpoint.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CheckpointInfo {
+    /// Format tag, `"ipdf-rs checkpoint 1"`.
+    pub format: String,
+    /// The model's configuration.
+    pub model: ModelConfig,
+    /// Training options, when saved by a trainer.
+    pub training: Option<TrainOptions>,
+    /// Training steps done.
+    pub step: u64,
+    /// The weights file, relative to the folder.
+    pub weights: String,
+    /// Adam's state file, relative to the folder, when saved by a trainer.
+    pub optimizer: Option<String>,
+}
+
+impl CheckpointInfo {
+    /// Reads `dir/checkpoint.json`.
+    pub fn read(dir: &Path) -> Result<Self, ModelError> {
+        let path = dir.join(CHECKPOINT_FILE);
+        let text = std::fs::read_to_string(&path).map_err(|source| ModelError::Io {
+            path: path.clone(),
+            source,
+        })?;
+        let info: Self = serde_json::from_str(&text)
+            .map_err(|e| ModelError::checkpoint(&path, format!("not a checkpoint: {e}")))?;
+        if info.format != FORMAT {
+            return Err(ModelError::checkpoint(
+                &path,
+                format!("format: {:?}, expected {FORMAT:?}", info.format),
+            ));
+        }
+        Ok(info)
+    }
+}
+
+impl ModelConfig {
+    /// Fails with [`ModelError::ConfigMismatch`] naming the first field where `found` (read
+    /// from the checkpoint at `path`) differs from `self`.
+    pub fn check_same(&self, found: &ModelConfig, path: &Path) -> Result<(), ModelError> {
+        let fields: [(&'static str, String, String); 5] = [
+            (
+                "encoder",
+                self.encoder.to_string(),
+                found.encoder.to_string(),
+            ),
+            (
+                "input_size",
+                self.input_size.to_string(),
+                found.input_size.to_string(),
+            ),
+            (
+                "fourier_components",
+                self.fourier_components.to_string(),
+                found.fourier_components.to_string(),
+            ),
+            (
+                "head_sizes",
+                format!("{:?}", self.head_sizes),
+                format!("{:?}", found.head_sizes),
+            ),
+            ("seed", self.seed.to_string(), found.seed.to_string()),
+        ];
+        match fields.into_iter().find(|(_, a, b)| a != b) {
+            Some((field, expected, found)) => Err(ModelError::ConfigMismatch {
+                path: path.to_path_buf(),
+                field,
+                expected,
+                found,
+            }),
+            None => Ok(()),
+        }
+    }
+}
+
+impl ImplicitPdf {
+    /// Writes the model as a checkpoint in `dir` (created if missing), with no training state.
+    pub fn save(&self, dir: &Path) -> Result<(), ModelError> {
+        write_checkpoint(dir, self, None)
+    }
+
+    /// The model of the checkpoint in `dir`, on `device`.
+    pub fn load(dir: &Path, device: Device) -> Result<Self, ModelError> {
+        let info = CheckpointInfo::read(dir)?;
+        let mut model = ImplicitPdf::new(info.model.clone(), device)?;
+        load_exact(model.var_store_mut(), &dir.join(&info.weights))?;
+        Ok(model)
+    }
+}
+
+impl Trainer {
+    /// Writes the model, Adam's state, the options and the step as a checkpoint in `dir`.
+    pub fn save(&self, dir: &Path) -> Result<(), ModelError> {
+        write_checkpoint(dir, &self.model, Some(self))
+    }
+
+    /// Continues the training saved in `dir` on `device`, at its step, with its options.
+    pub fn resume(dir: &Path, device: Device) -> Result<Self, ModelError> {
+        let info = CheckpointInfo::read(dir)?;
+        let json = dir.join(CHECKPOINT_FILE);
+        let (Some(options), Some(optimizer)) = (info.training.clone(), info.optimizer.clone())
+        else {
+            return Err(ModelError::checkpoint(
+                &json,
+                "training, optimizer: missing (saved without training state)",
+            ));
+        };
+        let model = ImplicitPdf::load(dir, device)?;
+        let mut trainer = Trainer::at_step(model, options, info.step)?;
+        let path = dir.join(optimizer);
+        let saved = read_tensors(&path, device)?;
+        trainer
+            .adam
+            .load_state(saved)
+            .map_err(|reason| ModelError::checkpoint(&path, reason))?;
+        Ok(trainer)
+    }
+}
+
+fn write_checkpoint(
+    dir: &Path,
+    model: &ImplicitPdf,
+    trainer: Option<&Trainer>,
+) -> Result<(), ModelError> {
+    std::fs::create_dir_all(dir).map_err(|source| ModelError::Io {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    let step = trainer.map_or(0, |t| t.step);
+    let weights = format!("model-{step:08}.safetensors");
+    write_tensors(&dir.join(&weights), &named_variables(model.var_store()))?;
+    let optimizer = match trainer {
+        Some(t) => {
+            let name = format!("optimizer-{step:08}.safetensors");
+            write_tensors(&dir.join(&name), &t.adam.state())?;
+            Some(name)
+        }
+        None => None,
+    };
+    let info = CheckpointInfo {
+        format: FORMAT.into(),
+        model: model.config().clone(),
+        training: trainer.map(|t| t.options.clone()),
+        step,
+        weights: weights.clone(),
+        optimizer: optimizer.clone(),
+    };
+    let json = dir.join(CHECKPOINT_FILE);
+    let text = serde_json::to_string_pretty(&info)
+        .map_err(|e| ModelError::checkpoint(&json, e.to_string()))?;
+    write_then_rename(&json, |tmp| {
+        std::fs::write(tmp, text.as_bytes()).map_err(|source| ModelError::Io {
+            path: tmp.to_path_buf(),
+            source,
+        })
+    })?;
+    remove_stale(dir, &[weights, optimizer.unwrap_or_default()]);
+    Ok(())
+}
+
+/// Removes tensor files of other steps (best effort: a leftover file is harmless).
+fn remove_stale(dir: &Path, keep: &[String]) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let ours = (name.starts_with("model-") || name.starts_with("optimizer-"))
+            && name.ends_with(".safetensors");
+        if ours && !keep.contains(&name) {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
+}
+
+/// The variables in name order, on the CPU.
+fn named_variables(var_store: &nn::VarStore) -> Vec<(String, Tensor)> {
+    let mut named: Vec<(String, Tensor)> = var_store.variables().into_iter().collect();
+    named.sort_by(|a, b| a.0.cmp(&b.0));
+    named
+}
+
+fn write_tensors(path: &Path, named: &[(String, Tensor)]) -> Result<(), ModelError> {
+    write_then_rename(path, |tmp| {
+        Tensor::write_safetensors(named, tmp)
+            .map_err(|e| ModelError::checkpoint(tmp, e.to_string()))
+    })
+}
+
+/// Runs `write` on `path` + `.tmp`, then renames it to `path`.
+fn write_then_rename(
+    path: &Path,
+    write: impl FnOnce(&Path) -> Result<(), ModelError>,
+) -> Result<(), ModelError> {
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".tmp");
+    let tmp = PathBuf::from(tmp);
+    write(&tmp)?;
+    std::fs::rename(&tmp, path).map_err(|source| ModelError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// The tensors of a `.safetensors` file, by name, on `device`.
+pub(crate) fn read_tensors(
+    path: &Path,
+    device: Device,
+) -> Result<HashMap<String, Tensor>, ModelError> {
+    if !path.is_file() {
+        return Err(ModelError::Io {
+            path: path.to_path_buf(),
+            source: std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
+        });
+    }
+    let named = Tensor::read_safetensors(path)
+        .map_err(|e| ModelError::checkpoint(path, format!("unreadable safetensors: {e}")))?;
+    Ok(named
+        .into_iter()
+        .map(|(name, tensor)| (name, tensor.to_device(device)))
+        .collect())
+}
+
+/// Loads every variable of `var_store` from `path`, which must hold exactly those names and
+/// shapes.
+fn load_exact(var_store: &mut nn::VarStore, path: &Path) -> Result<(), ModelError> {
+    let mut saved = read_tensors(path, var_store.device())?;
+    for (name, mut variable) in named_variables(var_store) {
+        let tensor = saved
+            .remove(&name)
+            .ok_or_else(|| ModelError::checkpoint(path, format!("{name}: missing")))?;
+        copy_checked(&mut variable, &tensor, &name, path)?;
+    }
+    if let Some(extra) = saved.keys().min() {
+        return Err(ModelError::checkpoint(
+            path,
+            format!("{extra}: not a parameter of this model (another configuration?)"),
+        ));
+    }
+    Ok(())
+}
+
+/// Copies `source` into `target` after checking the shape.
+pub(crate) fn copy_checked(
+    target: &mut Tensor,
+    source: &Tensor,
+    name: &str,
+    path: &Path,
+) -> Result<(), ModelError> {
+    if source.size() != target.size() {
+        return Err(ModelError::checkpoint(
+            path,
+            format!(
+                "{name}: shape {:?}, the model has {:?}",
+                source.size(),
+                target.size()
+            ),
+        ));
+    }
+    tch::no_grad(|| target.f_copy_(&source.to_kind(target.kind())))?;
+    Ok(())
+}

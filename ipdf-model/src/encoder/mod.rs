@@ -1,0 +1,100 @@
+//! Image encoders: an RGB crop `[B, 3, S, S]` (ImageNet-normalised) to a feature `[B, D]`.
+mod convnext;
+mod resnet;
+mod small_cnn;
+
+use serde::{Deserialize, Serialize};
+use tch::{Tensor, nn};
+
+use crate::layers::ParamInit;
+use convnext::ConvNextTiny;
+use resnet::{ResNet18, ResNetCut};
+use small_cnn::SmallCnn;
+
+/// Which image encoder a model uses. Parameter names follow torchvision, so the ResNet and
+/// ConvNeXt weights of a torchvision checkpoint converted to `.safetensors` load directly
+/// (see [`crate::load_backbone`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum EncoderKind {
+    /// ResNet-18 without its classifier: 512-d after global average pooling (the paper's).
+    Resnet18,
+    /// ResNet-18 cut after its third stage, flattened: `256 · ⌈S/16⌉²`-d, keeps spatial layout.
+    #[serde(rename = "resnet18-2")]
+    Resnet18Stage3,
+    /// ConvNeXt-Tiny without its final linear layer: 768-d.
+    ConvnextTiny,
+    /// Four stride-2 3×3 convolutions (32–256 channels) and global pooling: 256-d; for quick
+    /// CPU runs.
+    SmallCnn,
+}
+
+impl EncoderKind {
+    /// Every encoder, in the order of the command line's list.
+    pub const ALL: [Self; 4] = [
+        Self::Resnet18,
+        Self::Resnet18Stage3,
+        Self::ConvnextTiny,
+        Self::SmallCnn,
+    ];
+
+    /// The command line's name: `resnet18`, `resnet18-2`, `convnext-tiny`, `small-cnn`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Resnet18 => "resnet18",
+            Self::Resnet18Stage3 => "resnet18-2",
+            Self::ConvnextTiny => "convnext-tiny",
+            Self::SmallCnn => "small-cnn",
+        }
+    }
+
+    /// The encoder called `name` (see [`EncoderKind::name`]).
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|kind| kind.name() == name)
+    }
+}
+
+impl std::fmt::Display for EncoderKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A built encoder.
+#[derive(Debug)]
+pub(crate) enum Encoder {
+    ResNet(ResNet18),
+    ConvNext(ConvNextTiny),
+    Small(SmallCnn),
+}
+
+impl Encoder {
+    pub(crate) fn new(path: nn::Path, kind: EncoderKind, init: &mut ParamInit) -> Self {
+        match kind {
+            EncoderKind::Resnet18 => Self::ResNet(ResNet18::new(path, ResNetCut::Pooled, init)),
+            EncoderKind::Resnet18Stage3 => {
+                Self::ResNet(ResNet18::new(path, ResNetCut::Stage3, init))
+            }
+            EncoderKind::ConvnextTiny => Self::ConvNext(ConvNextTiny::new(path, init)),
+            EncoderKind::SmallCnn => Self::Small(SmallCnn::new(path, init)),
+        }
+    }
+
+    /// The feature length for `input_size × input_size` crops.
+    pub(crate) fn feature_dim(&self, input_size: i64) -> i64 {
+        match self {
+            Self::ResNet(net) => net.feature_dim(input_size),
+            Self::ConvNext(_) => ConvNextTiny::FEATURES,
+            Self::Small(_) => SmallCnn::FEATURES,
+        }
+    }
+
+    /// `[B, 3, S, S]` → `[B, D]`.
+    pub(crate) fn forward_t(&self, images: &Tensor, train: bool) -> Tensor {
+        match self {
+            Self::ResNet(net) => net.forward_t(images, train),
+            Self::ConvNext(net) => net.forward(images),
+            Self::Small(net) => net.forward_t(images, train),
+        }
+    }
+}

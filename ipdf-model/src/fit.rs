@@ -1,0 +1,252 @@
+//! Training over epochs from images held in memory, with per-epoch validation LLH,
+//! checkpoints and `train_log.csv`, resumable.
+use std::path::Path;
+use std::time::Instant;
+
+use nalgebra::UnitQuaternion;
+use rand::SeedableRng;
+use rand::seq::SliceRandom;
+use rand_chacha::ChaCha8Rng;
+use so3_grid::locate;
+use tch::{Kind, Tensor};
+
+use crate::loss::check_label_sets;
+use crate::train::{StepReport, Trainer};
+use crate::{ImplicitPdf, ModelError, Predictor};
+
+/// The name of the training log in a run folder.
+pub const TRAIN_LOG: &str = "train_log.csv";
+const LOG_HEADER: &str = "epoch,step,loss,learning_rate,validation_llh,seconds,images_per_second";
+
+/// Crops and their label sets.
+#[derive(Debug)]
+pub struct LabelledImages {
+    images: Tensor,
+    label_sets: Vec<Vec<UnitQuaternion<f64>>>,
+}
+
+impl LabelledImages {
+    /// `images`: `[N, 3, S, S]`, float in `[0, 1]` or 8-bit (`Kind::Uint8`, 0–255, a quarter of
+    /// the memory); one non-empty label set per image.
+    pub fn new(
+        images: Tensor,
+        label_sets: Vec<Vec<UnitQuaternion<f64>>>,
+    ) -> Result<Self, ModelError> {
+        let size = images.size();
+        if size.len() != 4 || size[1] != 3 || size[2] != size[3] || size[0] == 0 {
+            return Err(ModelError::ImageShape {
+                field: "images",
+                expected: "[N ≥ 1, 3, S, S]".into(),
+                got: format!("{size:?}"),
+            });
+        }
+        check_label_sets(&label_sets, size[0] as usize)?;
+        Ok(Self { images, label_sets })
+    }
+
+    /// The number of images.
+    pub fn len(&self) -> usize {
+        self.label_sets.len()
+    }
+
+    /// Whether there are no images (never true: [`LabelledImages::new`] refuses that).
+    pub fn is_empty(&self) -> bool {
+        self.label_sets.is_empty()
+    }
+
+    /// The label sets.
+    pub fn label_sets(&self) -> &[Vec<UnitQuaternion<f64>>] {
+        &self.label_sets
+    }
+
+    /// The images at `indices` as floats in `[0, 1]`, with their label sets.
+    pub fn batch(&self, indices: &[usize]) -> (Tensor, Vec<Vec<UnitQuaternion<f64>>>) {
+        let index = Tensor::from_slice(&indices.iter().map(|&i| i as i64).collect::<Vec<_>>());
+        let images = self.images.index_select(0, &index);
+        let images = if images.kind() == Kind::Uint8 {
+            images.to_kind(Kind::Float) / 255.0
+        } else {
+            images.to_kind(Kind::Float)
+        };
+        let sets = indices
+            .iter()
+            .map(|&i| self.label_sets[i].clone())
+            .collect();
+        (images, sets)
+    }
+}
+
+/// How long [`fit`] trains.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FitOptions {
+    /// Epochs to reach (a resumed run continues up to this).
+    pub epochs: u64,
+    /// Steps per epoch.
+    pub steps_per_epoch: u64,
+    /// Images per step.
+    pub batch_size: usize,
+    /// Grid level of the validation LLH (2: 4,608 cells).
+    pub validation_level: u8,
+}
+
+/// One line of `train_log.csv`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EpochReport {
+    /// Epoch number, from 1.
+    pub epoch: u64,
+    /// Steps done at its end.
+    pub step: u64,
+    /// Mean training loss over the epoch.
+    pub loss: f64,
+    /// Learning rate of its last step.
+    pub learning_rate: f64,
+    /// Validation LLH at its end, when validation images were given.
+    pub validation_llh: Option<f64>,
+    /// Wall time of its steps, in seconds.
+    pub seconds: f64,
+    /// Training throughput.
+    pub images_per_second: f64,
+}
+
+/// Trains until `options.epochs` epochs are done, from wherever `trainer` is (a trainer from
+/// [`Trainer::resume`] continues). Each epoch draws a permutation of the images (seeded by the
+/// trainer's seed and the epoch), takes `steps_per_epoch` batches from it, then evaluates the
+/// validation LLH, saves a checkpoint into `run_dir` and rewrites `run_dir/train_log.csv`
+/// (both atomically). `on_step` sees every step (for progress bars).
+pub fn fit(
+    trainer: &mut Trainer,
+    train: &LabelledImages,
+    validation: Option<&LabelledImages>,
+    options: &FitOptions,
+    run_dir: &Path,
+    mut on_step: impl FnMut(&StepReport),
+) -> Result<Vec<EpochReport>, ModelError> {
+    if options.steps_per_epoch == 0 || options.batch_size == 0 || options.epochs == 0 {
+        return Err(ModelError::option(
+            "epochs",
+            format!("{options:?}: epochs, steps_per_epoch and batch_size must be ≥ 1"),
+        ));
+    }
+    let mut log = read_log(run_dir, trainer.step() / options.steps_per_epoch);
+    let mut reports = Vec::new();
+    let first_epoch = trainer.step() / options.steps_per_epoch;
+    for epoch in first_epoch..options.epochs {
+        let mut order: Vec<usize> = (0..train.len()).collect();
+        let mut rng = ChaCha8Rng::seed_from_u64(trainer.options().seed ^ 0x5eed_ba7c);
+        rng.set_stream(epoch);
+        order.shuffle(&mut rng);
+        let started = Instant::now();
+        let mut loss_sum = 0.0;
+        let mut last = None;
+        let done_in_epoch = trainer.step() - epoch * options.steps_per_epoch;
+        for step in done_in_epoch..options.steps_per_epoch {
+            let indices: Vec<usize> = (0..options.batch_size)
+                .map(|i| order[(step as usize * options.batch_size + i) % order.len()])
+                .collect();
+            let (images, sets) = train.batch(&indices);
+            let report = trainer.train_step(&images, &sets)?;
+            loss_sum += report.loss;
+            on_step(&report);
+            last = Some(report);
+        }
+        let seconds = started.elapsed().as_secs_f64();
+        let steps = (options.steps_per_epoch - done_in_epoch).max(1);
+        let validation_llh = match validation {
+            Some(data) => Some(validation_llh(
+                trainer.model(),
+                data,
+                options.validation_level,
+            )?),
+            None => None,
+        };
+        let report = EpochReport {
+            epoch: epoch + 1,
+            step: trainer.step(),
+            loss: loss_sum / steps as f64,
+            learning_rate: last.map_or(0.0, |r| r.learning_rate),
+            validation_llh,
+            seconds,
+            images_per_second: (steps as usize * options.batch_size) as f64 / seconds.max(1e-9),
+        };
+        trainer.save(run_dir)?;
+        log.push(log_line(&report));
+        write_log(run_dir, &log)?;
+        reports.push(report);
+    }
+    Ok(reports)
+}
+
+/// The mean over images of the mean over each image's label set of `ln p(R | I)` on the dense
+/// `level` grid (the LLH of Murphy et al. 2021 on that grid; `−ln π² ≈ −2.29` for a uniform
+/// density).
+pub fn validation_llh(
+    model: &ImplicitPdf,
+    data: &LabelledImages,
+    level: u8,
+) -> Result<f64, ModelError> {
+    let mut predictor = Predictor::new(model);
+    let cells = so3_grid::cell_count(level) as f64;
+    let log_volume = (cells / std::f64::consts::PI.powi(2)).ln();
+    let mut total = 0.0;
+    for image in 0..data.len() {
+        let (crop, sets) = data.batch(&[image]);
+        let masses = predictor.probabilities(&crop, level)?;
+        let set = &sets[0];
+        let mut sum = 0.0;
+        for rotation in set {
+            sum += masses[locate(level, rotation)? as usize].ln() + log_volume;
+        }
+        total += sum / set.len() as f64;
+    }
+    Ok(total / data.len() as f64)
+}
+
+fn log_line(report: &EpochReport) -> String {
+    format!(
+        "{},{},{:.6},{:.6e},{},{:.3},{:.2}",
+        report.epoch,
+        report.step,
+        report.loss,
+        report.learning_rate,
+        report
+            .validation_llh
+            .map_or(String::new(), |v| format!("{v:.6}")),
+        report.seconds,
+        report.images_per_second
+    )
+}
+
+/// The lines of an existing log for epochs up to `epochs_done` (later lines belong to a run
+/// that was killed before its checkpoint).
+fn read_log(run_dir: &Path, epochs_done: u64) -> Vec<String> {
+    let Ok(text) = std::fs::read_to_string(run_dir.join(TRAIN_LOG)) else {
+        return Vec::new();
+    };
+    text.lines()
+        .skip(1)
+        .filter(|line| {
+            line.split(',')
+                .next()
+                .and_then(|e| e.parse::<u64>().ok())
+                .is_some_and(|e| e <= epochs_done)
+        })
+        .map(str::to_string)
+        .collect()
+}
+
+fn write_log(run_dir: &Path, lines: &[String]) -> Result<(), ModelError> {
+    let path = run_dir.join(TRAIN_LOG);
+    let tmp = run_dir.join(format!("{TRAIN_LOG}.tmp"));
+    let mut text = String::from(LOG_HEADER);
+    text.push('\n');
+    for line in lines {
+        text.push_str(line);
+        text.push('\n');
+    }
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| ModelError::Io { path, source }
+    };
+    std::fs::write(&tmp, text).map_err(io(&tmp))?;
+    std::fs::rename(&tmp, &path).map_err(io(&path))
+}

@@ -1,0 +1,303 @@
+//! Inference: `F` on whole grids (dense, chunked), hierarchically refined distributions, and
+//! the most likely rotation by gradient ascent.
+use std::collections::HashMap;
+
+use nalgebra::{UnitQuaternion, Vector3};
+use so3_grid::{Grid, cell_count};
+use tch::{Kind, Tensor};
+
+use crate::encoding::rotations_to_tensor;
+use crate::refine::{CellMasses, RefineOptions, refine};
+use crate::{ImplicitPdf, ModelError};
+
+/// Rotations evaluated per network call. Activations of `CHUNK · H` floats (4 MiB for H = 256)
+/// stay in cache between layers: 4,096 took half the time of 32,768 (`make bench`,
+/// `evaluate/dense_level4_*`), 1,024 no less than 4,096.
+const CHUNK: usize = 4_096;
+
+/// Query terms are cached per grid level up to this size in bytes (level 4 with H = 256 takes
+/// 302 MB); larger levels are computed chunk by chunk.
+const CACHE_BYTES: usize = 512 << 20;
+
+/// Options of [`Predictor::argmax`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ArgmaxOptions {
+    /// The hierarchical evaluation whose densest cells start the ascent.
+    pub refine: RefineOptions,
+    /// Number of starting cells (the densest ones).
+    pub starts: usize,
+    /// Gradient-ascent steps per start.
+    pub steps: usize,
+    /// First step length in radians (decays linearly to 0).
+    pub step_size: f64,
+}
+
+impl Default for ArgmaxOptions {
+    /// The default hierarchical evaluation, 4 starts, 50 steps of at most 0.5°.
+    fn default() -> Self {
+        Self {
+            refine: RefineOptions::default(),
+            starts: 4,
+            steps: 50,
+            step_size: 0.5f64.to_radians(),
+        }
+    }
+}
+
+/// The most likely rotation found by [`Predictor::argmax`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Argmax {
+    /// The rotation.
+    pub rotation: UnitQuaternion<f64>,
+    /// `F` there (unnormalised log-density).
+    pub score: f64,
+    /// `F` at the best grid cell it started from.
+    pub start_score: f64,
+}
+
+/// Evaluates a model's density for one image at a time, caching grids and the query terms of
+/// fixed grids across images.
+pub struct Predictor<'m> {
+    model: &'m ImplicitPdf,
+    grids: HashMap<u8, Grid>,
+    query_terms: HashMap<u8, Tensor>,
+}
+
+impl<'m> Predictor<'m> {
+    /// A predictor for `model` (evaluated in inference mode).
+    pub fn new(model: &'m ImplicitPdf) -> Self {
+        Self {
+            model,
+            grids: HashMap::new(),
+            query_terms: HashMap::new(),
+        }
+    }
+
+    /// The image term `[1, H]` of one crop (`[3, S, S]` or `[1, 3, S, S]`, values in `[0, 1]`).
+    pub fn image_term(&self, image: &Tensor) -> Result<Tensor, ModelError> {
+        let batch = if image.dim() == 3 {
+            image.unsqueeze(0)
+        } else {
+            image.shallow_clone()
+        };
+        if batch.dim() != 4 || batch.size()[0] != 1 {
+            return Err(ModelError::ImageShape {
+                field: "image",
+                expected: format!("one crop [3, {s}, {s}]", s = self.model.config().input_size),
+                got: format!("{:?}", image.size()),
+            });
+        }
+        tch::no_grad(|| self.model.image_term(&batch, false))
+    }
+
+    fn grid(&mut self, level: u8) -> Result<&Grid, ModelError> {
+        match self.grids.entry(level) {
+            std::collections::hash_map::Entry::Occupied(entry) => Ok(entry.into_mut()),
+            std::collections::hash_map::Entry::Vacant(entry) => Ok(entry.insert(Grid::new(level)?)),
+        }
+    }
+
+    /// `F` at the centres of `cells` of a `level` grid, for an image term from
+    /// [`Predictor::image_term`].
+    pub fn cell_scores(
+        &mut self,
+        image_term: &Tensor,
+        level: u8,
+        cells: &[u64],
+    ) -> Result<Vec<f64>, ModelError> {
+        let model = self.model;
+        let device = model.device();
+        let grid = self.grid(level)?;
+        let mut rotations = Vec::with_capacity(cells.len().min(CHUNK));
+        let mut out = Vec::with_capacity(cells.len());
+        for chunk in cells.chunks(CHUNK) {
+            rotations.clear();
+            for &index in chunk {
+                rotations.push(grid.rotation(index)?);
+            }
+            let queries = rotations_to_tensor(&rotations, device);
+            let scores = tch::no_grad(|| {
+                model
+                    .scores(image_term, &model.query_term(&queries))
+                    .to_kind(Kind::Double)
+            });
+            out.extend(Vec::<f64>::try_from(&scores)?);
+        }
+        Ok(out)
+    }
+
+    /// `F` at every cell centre of the `level` grid, `[N]` (float), chunked; the grid's query
+    /// term is computed once and kept while it fits the cache.
+    pub fn grid_scores(&mut self, image_term: &Tensor, level: u8) -> Result<Tensor, ModelError> {
+        let count = cell_count(level) as usize;
+        let width = self.model.config().head_sizes[0] as usize;
+        if count * width * 4 > CACHE_BYTES {
+            let cells: Vec<u64> = (0..count as u64).collect();
+            let scores = self.cell_scores(image_term, level, &cells)?;
+            return Ok(Tensor::from_slice(&scores).to_kind(Kind::Float));
+        }
+        if !self.query_terms.contains_key(&level) {
+            let rotations = self.grid(level)?.rotations();
+            let queries = rotations_to_tensor(&rotations, self.model.device());
+            let term = tch::no_grad(|| self.model.query_term(&queries));
+            self.query_terms.insert(level, term);
+        }
+        let term = &self.query_terms[&level];
+        let chunks: Vec<Tensor> = tch::no_grad(|| {
+            term.split(CHUNK as i64, 0)
+                .iter()
+                .map(|part| self.model.scores(image_term, part))
+                .collect()
+        });
+        Ok(Tensor::cat(&chunks, 0))
+    }
+
+    /// The normalised distribution over the cells of the `level` grid (masses in cell order,
+    /// summing to 1; each cell's density is `mass · N / π²`).
+    pub fn probabilities(&mut self, image: &Tensor, level: u8) -> Result<Vec<f64>, ModelError> {
+        let image_term = self.image_term(image)?;
+        let scores = self.grid_scores(&image_term, level)?;
+        let masses = scores.to_kind(Kind::Double).softmax(0, Kind::Double);
+        Ok(Vec::<f64>::try_from(&masses)?)
+    }
+
+    /// The distribution refined hierarchically (see [`refine`]): dense at
+    /// `options.start_level`, then only the cells holding most of the mass down to
+    /// `options.level`.
+    pub fn hierarchical(
+        &mut self,
+        image: &Tensor,
+        options: &RefineOptions,
+    ) -> Result<CellMasses, ModelError> {
+        let image_term = self.image_term(image)?;
+        self.hierarchical_for(&image_term, options)
+    }
+
+    fn hierarchical_for(
+        &mut self,
+        image_term: &Tensor,
+        options: &RefineOptions,
+    ) -> Result<CellMasses, ModelError> {
+        let start = options.start_level;
+        refine(
+            |level, cells| {
+                if level == start && cells.len() as u64 == cell_count(level) {
+                    let scores = self.grid_scores(image_term, level)?;
+                    Ok(Vec::<f64>::try_from(scores.to_kind(Kind::Double))?)
+                } else {
+                    self.cell_scores(image_term, level, cells)
+                }
+            },
+            options,
+        )
+    }
+
+    /// The most likely rotation: the densest cells of the hierarchical evaluation, each
+    /// followed by gradient ascent on `F` over the tangent space (`R = R₀ · exp([ω]×)`, steps
+    /// along the normalised gradient with a linearly decaying length); the best end point.
+    pub fn argmax(
+        &mut self,
+        image: &Tensor,
+        options: &ArgmaxOptions,
+    ) -> Result<Argmax, ModelError> {
+        if options.starts == 0 || !(options.step_size >= 0.0 && options.step_size.is_finite()) {
+            return Err(ModelError::option(
+                "starts",
+                format!(
+                    "{} starts, step size {}: need ≥ 1 and a finite step ≥ 0",
+                    options.starts, options.step_size
+                ),
+            ));
+        }
+        let image_term = self.image_term(image)?;
+        let masses = self.hierarchical_for(&image_term, &options.refine)?;
+        let mut starts = Vec::with_capacity(options.starts);
+        for position in masses.densest(options.starts) {
+            let (level, index) = masses.cells[position];
+            starts.push(self.grid(level)?.rotation(index)?);
+        }
+        let device = self.model.device();
+        let bases = rotations_to_tensor(&starts, device).reshape([-1, 3, 3]);
+        let count = starts.len() as i64;
+        let mut tangent = Tensor::zeros([count, 3], (Kind::Float, device)).set_requires_grad(true);
+        let score_at = |tangent: &Tensor| {
+            let rotations = bases.matmul(&exp_map(tangent)).reshape([count, 9]);
+            self.model
+                .scores(&image_term, &self.model.query_term(&rotations))
+        };
+        let start_scores =
+            Vec::<f64>::try_from(tch::no_grad(|| score_at(&tangent)).to_kind(Kind::Double))?;
+        let mut best_scores = start_scores.clone();
+        let mut best_tangents = vec![[0.0f64; 3]; starts.len()];
+        for step in 0..options.steps {
+            let scores = score_at(&tangent);
+            let values = Vec::<f64>::try_from(scores.to_kind(Kind::Double).detach())?;
+            let current =
+                Vec::<f64>::try_from(tangent.detach().to_kind(Kind::Double).reshape([-1]))?;
+            for (i, &value) in values.iter().enumerate() {
+                if value > best_scores[i] {
+                    best_scores[i] = value;
+                    best_tangents[i] = [current[3 * i], current[3 * i + 1], current[3 * i + 2]];
+                }
+            }
+            tangent.zero_grad();
+            scores.sum(Kind::Float).backward();
+            let length = options.step_size * (1.0 - step as f64 / options.steps as f64);
+            tch::no_grad(|| {
+                let grad = tangent.grad();
+                let norm = grad.norm_scalaropt_dim(2.0, [1].as_slice(), true) + 1e-12;
+                let mut t = tangent.shallow_clone();
+                let _ = t.g_add_(&(grad / norm * length));
+            });
+        }
+        let final_scores =
+            Vec::<f64>::try_from(tch::no_grad(|| score_at(&tangent)).to_kind(Kind::Double))?;
+        let final_tangent =
+            Vec::<f64>::try_from(tangent.detach().to_kind(Kind::Double).reshape([-1]))?;
+        for (i, &value) in final_scores.iter().enumerate() {
+            if value > best_scores[i] {
+                best_scores[i] = value;
+                best_tangents[i] = [
+                    final_tangent[3 * i],
+                    final_tangent[3 * i + 1],
+                    final_tangent[3 * i + 2],
+                ];
+            }
+        }
+        let best = (0..starts.len())
+            .max_by(|&a, &b| best_scores[a].total_cmp(&best_scores[b]))
+            .unwrap_or(0);
+        let [x, y, z] = best_tangents[best];
+        Ok(Argmax {
+            rotation: starts[best] * UnitQuaternion::from_scaled_axis(Vector3::new(x, y, z)),
+            score: best_scores[best],
+            start_score: start_scores[best],
+        })
+    }
+}
+
+/// Rotation matrices `[K, 3, 3]` of tangent vectors `[K, 3]` (Rodrigues' formula; the small
+/// offset inside the square root keeps the gradient finite at 0).
+fn exp_map(tangent: &Tensor) -> Tensor {
+    let count = tangent.size()[0];
+    let (x, y, z) = (
+        tangent.select(1, 0),
+        tangent.select(1, 1),
+        tangent.select(1, 2),
+    );
+    let zero = x.zeros_like();
+    let hat = Tensor::stack(
+        &[&zero, &(-&z), &y, &z, &zero, &(-&x), &(-&y), &x, &zero],
+        1,
+    )
+    .reshape([count, 3, 3]);
+    let angle = (tangent
+        .square()
+        .sum_dim_intlist([1].as_slice(), true, Kind::Float)
+        + 1e-12)
+        .sqrt()
+        .unsqueeze(-1);
+    let eye = Tensor::eye(3, (Kind::Float, tangent.device()));
+    let hat2 = hat.matmul(&hat);
+    eye + hat * (angle.sin() / &angle) + hat2 * ((1.0 - angle.cos()) / angle.square())
+}

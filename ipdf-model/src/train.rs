@@ -1,0 +1,233 @@
+//! One training step and the state that carries over between steps.
+use nalgebra::UnitQuaternion;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+use tch::Tensor;
+
+use crate::augment::{Augmentation, augment};
+use crate::loss::{
+    LabelLoss, QuerySampler, QuerySampling, check_label_sets, padded_labels, queries_through,
+    set_nll,
+};
+use crate::optim::{Adam, LearningRateSchedule};
+use crate::{ImplicitPdf, ModelError};
+
+/// Everything about training that is not the model's shape; stored in checkpoints.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TrainOptions {
+    /// Adam's learning rate per step.
+    pub schedule: LearningRateSchedule,
+    /// Maximum global L2 norm of the gradient (larger gradients are scaled down).
+    pub clip_norm: f64,
+    /// The query rotations of each step.
+    pub queries: QuerySampling,
+    /// How label sets enter the loss.
+    pub label_loss: LabelLoss,
+    /// Image augmentation.
+    pub augmentation: Augmentation,
+    /// Seed of the queries, label draws and augmentation (step `s` uses ChaCha8 stream `s`).
+    pub seed: u64,
+}
+
+impl Default for TrainOptions {
+    /// Learning rate 1e-4 (500 warm-up steps, cosine to 0 at 10,000), clipping at 5, level-2
+    /// grid queries (4,608), whole label sets, colour jitter, seed 0.
+    fn default() -> Self {
+        Self {
+            schedule: LearningRateSchedule {
+                peak: 1e-4,
+                warmup_steps: 500,
+                total_steps: 10_000,
+            },
+            clip_norm: 5.0,
+            queries: QuerySampling::Grid { level: 2 },
+            label_loss: LabelLoss::WholeSet,
+            augmentation: Augmentation::default(),
+            seed: 0,
+        }
+    }
+}
+
+impl TrainOptions {
+    /// Checks the ranges of the fields.
+    pub fn validate(&self) -> Result<(), ModelError> {
+        let s = &self.schedule;
+        if !(s.peak.is_finite() && s.peak > 0.0) {
+            return Err(ModelError::option(
+                "schedule.peak",
+                format!("{}: need > 0", s.peak),
+            ));
+        }
+        if s.total_steps == 0 || s.warmup_steps > s.total_steps {
+            return Err(ModelError::option(
+                "schedule.total_steps",
+                format!(
+                    "{} total with {} warm-up steps",
+                    s.total_steps, s.warmup_steps
+                ),
+            ));
+        }
+        if !(self.clip_norm.is_finite() && self.clip_norm > 0.0) {
+            return Err(ModelError::option(
+                "clip_norm",
+                format!("{}: need > 0", self.clip_norm),
+            ));
+        }
+        let a = &self.augmentation;
+        let [smallest, largest] = a.occlusion_area;
+        let areas_ok = (0.0..=1.0).contains(&smallest) && (smallest..=1.0).contains(&largest);
+        if !(0.0..=1.0).contains(&a.occlusion_probability)
+            || !(0.0..=0.5).contains(&a.colour_jitter)
+            || !areas_ok
+        {
+            return Err(ModelError::option(
+                "augmentation",
+                format!("{a:?}: probability and areas need [0, 1], jitter [0, 0.5]"),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// What one step did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepReport {
+    /// Steps done so far, this one included.
+    pub step: u64,
+    /// The batch's mean negative log-likelihood (nats; `ln π² ≈ 2.29` for a uniform density).
+    pub loss: f64,
+    /// The learning rate used.
+    pub learning_rate: f64,
+    /// The gradient's global L2 norm before clipping.
+    pub gradient_norm: f64,
+}
+
+/// A model being trained: the model, Adam's state and the step count.
+pub struct Trainer {
+    pub(crate) model: ImplicitPdf,
+    pub(crate) options: TrainOptions,
+    pub(crate) adam: Adam,
+    pub(crate) step: u64,
+    sampler: QuerySampler,
+}
+
+impl Trainer {
+    /// Starts training `model` from step 0.
+    pub fn new(model: ImplicitPdf, options: TrainOptions) -> Result<Self, ModelError> {
+        Self::at_step(model, options, 0)
+    }
+
+    pub(crate) fn at_step(
+        model: ImplicitPdf,
+        options: TrainOptions,
+        step: u64,
+    ) -> Result<Self, ModelError> {
+        options.validate()?;
+        let sampler = QuerySampler::new(options.queries, model.device())?;
+        let adam = Adam::new(model.var_store());
+        Ok(Self {
+            model,
+            options,
+            adam,
+            step,
+            sampler,
+        })
+    }
+
+    /// The model.
+    pub fn model(&self) -> &ImplicitPdf {
+        &self.model
+    }
+
+    /// The model, ending training.
+    pub fn into_model(self) -> ImplicitPdf {
+        self.model
+    }
+
+    /// The options.
+    pub fn options(&self) -> &TrainOptions {
+        &self.options
+    }
+
+    /// Steps done so far.
+    pub fn step(&self) -> u64 {
+        self.step
+    }
+
+    /// The loss of a batch without updating anything: crops `[B, 3, S, S]` in `[0, 1]` and one
+    /// label set per image. Draws queries (and augmentation when `train`) from `rng`.
+    pub fn loss(
+        &self,
+        images: &Tensor,
+        label_sets: &[Vec<UnitQuaternion<f64>>],
+        rng: &mut ChaCha8Rng,
+        train: bool,
+    ) -> Result<Tensor, ModelError> {
+        self.model.check_images(images)?;
+        check_label_sets(label_sets, images.size()[0] as usize)?;
+        let device = self.model.device();
+        let kind = self.model.kind();
+        let images = if train {
+            augment(&images.to_device(device), &self.options.augmentation, rng)
+        } else {
+            images.to_device(device)
+        };
+        let queries = self.sampler.sample(rng);
+        let (labels, mask) = match self.options.label_loss {
+            LabelLoss::OneOfSet => {
+                let drawn: Vec<Vec<UnitQuaternion<f64>>> = label_sets
+                    .iter()
+                    .map(|set| vec![set[rand::RngExt::random_range(rng, 0..set.len())]])
+                    .collect();
+                padded_labels(&drawn, device, kind)
+            }
+            LabelLoss::WholeSet => padded_labels(label_sets, device, kind),
+        };
+        let batch = labels.size()[0];
+        let first_labels = labels.select(1, 0).reshape([batch, 3, 3]);
+        let shifted = queries_through(&queries, &first_labels); // [B, N, 3, 3]
+        let count = shifted.size()[1];
+        let image_term = self.model.image_term(&images, train)?.unsqueeze(1);
+        let query_scores = self.model.scores(
+            &image_term,
+            &self.model.query_term(&shifted.reshape([batch, count, 9])),
+        );
+        let label_scores = if labels.size()[1] == 1 {
+            query_scores.narrow(1, 0, 1)
+        } else {
+            self.model
+                .scores(&image_term, &self.model.query_term(&labels))
+        };
+        Ok(set_nll(&query_scores, &label_scores, &mask))
+    }
+
+    /// One optimisation step on a batch (see [`Trainer::loss`]): loss, backward pass, gradient
+    /// clipping, Adam with the scheduled learning rate. Randomness comes from ChaCha8 stream
+    /// `step` of the options' seed, so a resumed run repeats an uninterrupted one.
+    pub fn train_step(
+        &mut self,
+        images: &Tensor,
+        label_sets: &[Vec<UnitQuaternion<f64>>],
+    ) -> Result<StepReport, ModelError> {
+        let mut rng = ChaCha8Rng::seed_from_u64(self.options.seed);
+        rng.set_stream(self.step);
+        self.adam.zero_grad();
+        let loss = self.loss(images, label_sets, &mut rng, true)?;
+        let loss_value = f64::try_from(&loss)?;
+        if !loss_value.is_finite() {
+            return Err(ModelError::NonFiniteLoss { step: self.step });
+        }
+        loss.backward();
+        let gradient_norm = self.adam.clip_grad_norm(self.options.clip_norm);
+        let learning_rate = self.options.schedule.at(self.step);
+        self.step += 1;
+        self.adam.step(learning_rate, self.step);
+        Ok(StepReport {
+            step: self.step,
+            loss: loss_value,
+            learning_rate,
+            gradient_norm,
+        })
+    }
+}

@@ -1,0 +1,318 @@
+//! Checkpoints, resuming, pretrained backbones and bad input, through the public API.
+use std::path::Path;
+
+use ipdf_model::{
+    Augmentation, CHECKPOINT_FILE, CheckpointInfo, EncoderKind, FitOptions, ImplicitPdf,
+    LabelledImages, ModelConfig, ModelError, QuerySampling, TRAIN_LOG, TrainOptions, Trainer, fit,
+    load_backbone,
+};
+use nalgebra::UnitQuaternion;
+use tch::{Device, Kind, Tensor};
+
+const SIZE: i64 = 16;
+
+fn config() -> ModelConfig {
+    ModelConfig {
+        head_sizes: vec![16, 16],
+        ..ModelConfig::small(SIZE)
+    }
+}
+
+fn options() -> TrainOptions {
+    TrainOptions {
+        queries: QuerySampling::Uniform { count: 64 },
+        augmentation: Augmentation::OCCLUSION,
+        ..TrainOptions::default()
+    }
+}
+
+fn data(count: usize) -> LabelledImages {
+    let images = Tensor::rand([count as i64, 3, SIZE, SIZE], (Kind::Float, Device::Cpu));
+    let sets = (0..count)
+        .map(|i| vec![UnitQuaternion::from_euler_angles(0.1 * i as f64, 0.3, -0.2)])
+        .collect();
+    LabelledImages::new(images, sets).unwrap()
+}
+
+fn head_weight(model: &ImplicitPdf) -> Tensor {
+    model.var_store().variables()["head.hidden.0.weight"].copy()
+}
+
+fn fit_options(epochs: u64) -> FitOptions {
+    FitOptions {
+        epochs,
+        steps_per_epoch: 3,
+        batch_size: 4,
+        validation_level: 0,
+    }
+}
+
+#[test]
+fn a_resumed_run_ends_where_an_uninterrupted_one_does() {
+    let data = data(10);
+    let whole = tempfile::tempdir().unwrap();
+    let split = tempfile::tempdir().unwrap();
+    let fresh =
+        || Trainer::new(ImplicitPdf::new(config(), Device::Cpu).unwrap(), options()).unwrap();
+
+    let mut trainer = fresh();
+    let reports = fit(
+        &mut trainer,
+        &data,
+        Some(&data),
+        &fit_options(2),
+        whole.path(),
+        |_| {},
+    )
+    .unwrap();
+    assert_eq!(reports.len(), 2);
+    assert!(
+        reports
+            .iter()
+            .all(|r| r.validation_llh.is_some_and(f64::is_finite))
+    );
+
+    let mut first = fresh();
+    fit(
+        &mut first,
+        &data,
+        None,
+        &fit_options(1),
+        split.path(),
+        |_| {},
+    )
+    .unwrap();
+    drop(first);
+    let mut resumed = Trainer::resume(split.path(), Device::Cpu).unwrap();
+    assert_eq!(resumed.step(), 3);
+    fit(
+        &mut resumed,
+        &data,
+        None,
+        &fit_options(2),
+        split.path(),
+        |_| {},
+    )
+    .unwrap();
+
+    assert_eq!(resumed.step(), trainer.step());
+    assert!(head_weight(resumed.model()).equal(&head_weight(trainer.model())));
+    let log = std::fs::read_to_string(split.path().join(TRAIN_LOG)).unwrap();
+    assert_eq!(log.lines().count(), 3, "{log}");
+    assert!(log.starts_with("epoch,step,loss,"));
+    // Only the newest tensor files are kept.
+    let files = std::fs::read_dir(split.path()).unwrap().count();
+    assert_eq!(
+        files, 4,
+        "checkpoint.json, train_log.csv, model and optimizer files"
+    );
+}
+
+#[test]
+fn a_saved_model_loads_with_identical_outputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = ImplicitPdf::new(
+        ModelConfig {
+            seed: 4,
+            ..config()
+        },
+        Device::Cpu,
+    )
+    .unwrap();
+    model.save(dir.path()).unwrap();
+    let loaded = ImplicitPdf::load(dir.path(), Device::Cpu).unwrap();
+    let images = Tensor::rand([2, 3, SIZE, SIZE], (Kind::Float, Device::Cpu));
+    let a = model.image_term(&images, false).unwrap();
+    let b = loaded.image_term(&images, false).unwrap();
+    assert!(a.equal(&b));
+    let info = CheckpointInfo::read(dir.path()).unwrap();
+    assert_eq!(info.model, *model.config());
+    assert!(info.training.is_none());
+}
+
+#[test]
+fn damaged_or_foreign_checkpoints_are_typed_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = ImplicitPdf::new(config(), Device::Cpu).unwrap();
+    model.save(dir.path()).unwrap();
+    let info = CheckpointInfo::read(dir.path()).unwrap();
+    let weights = dir.path().join(&info.weights);
+
+    // A checkpoint without training state cannot be resumed.
+    let err = Trainer::resume(dir.path(), Device::Cpu).err().unwrap();
+    assert!(matches!(err, ModelError::Checkpoint { .. }), "{err}");
+
+    // Another configuration is named field by field.
+    let other = ModelConfig {
+        input_size: 24,
+        ..config()
+    };
+    let err = other
+        .check_same(&info.model, &dir.path().join(CHECKPOINT_FILE))
+        .unwrap_err();
+    assert!(
+        matches!(
+            err,
+            ModelError::ConfigMismatch {
+                field: "input_size",
+                ..
+            }
+        ),
+        "{err}"
+    );
+
+    // Weights of another shape.
+    let wide = ImplicitPdf::new(
+        ModelConfig {
+            head_sizes: vec![32, 16],
+            ..config()
+        },
+        Device::Cpu,
+    )
+    .unwrap();
+    let wide_dir = tempfile::tempdir().unwrap();
+    wide.save(wide_dir.path()).unwrap();
+    let wide_info = CheckpointInfo::read(wide_dir.path()).unwrap();
+    std::fs::copy(wide_dir.path().join(&wide_info.weights), &weights).unwrap();
+    let err = ImplicitPdf::load(dir.path(), Device::Cpu).unwrap_err();
+    assert!(err.to_string().contains("head."), "{err}");
+
+    // A truncated file.
+    let bytes = std::fs::read(wide_dir.path().join(&wide_info.weights)).unwrap();
+    std::fs::write(&weights, &bytes[..bytes.len() / 2]).unwrap();
+    let err = ImplicitPdf::load(dir.path(), Device::Cpu).unwrap_err();
+    assert!(matches!(err, ModelError::Checkpoint { .. }), "{err}");
+
+    // Malformed JSON.
+    std::fs::write(dir.path().join(CHECKPOINT_FILE), "{\"format\": 1").unwrap();
+    let err = ImplicitPdf::load(dir.path(), Device::Cpu).unwrap_err();
+    assert!(err.to_string().contains(CHECKPOINT_FILE), "{err}");
+    // No checkpoint at all.
+    let err = ImplicitPdf::load(Path::new("/nonexistent/run"), Device::Cpu).unwrap_err();
+    assert!(matches!(err, ModelError::Io { .. }), "{err}");
+}
+
+#[test]
+fn a_torchvision_named_backbone_loads_and_ignores_the_classifier() {
+    let config = ModelConfig {
+        encoder: EncoderKind::Resnet18,
+        input_size: 32,
+        head_sizes: vec![8],
+        ..ModelConfig::default()
+    };
+    // A "pretrained" ResNet-18 state dict: another seed's weights under torchvision's names,
+    // plus the classifier and batch-norm counters torchvision saves.
+    let donor = ImplicitPdf::new(
+        ModelConfig {
+            seed: 7,
+            ..config.clone()
+        },
+        Device::Cpu,
+    )
+    .unwrap();
+    let mut state: Vec<(String, Tensor)> = donor
+        .var_store()
+        .variables()
+        .into_iter()
+        .filter_map(|(name, t)| name.strip_prefix("encoder.").map(|n| (n.to_string(), t)))
+        .collect();
+    assert!(state.iter().any(|(n, _)| n == "layer4.1.bn2.running_var"));
+    state.push((
+        "fc.weight".into(),
+        Tensor::zeros([1000, 512], (Kind::Float, Device::Cpu)),
+    ));
+    state.push(("bn1.num_batches_tracked".into(), Tensor::from(5i64)));
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("resnet18.safetensors");
+    Tensor::write_safetensors(&state, &path).unwrap();
+
+    let mut model = ImplicitPdf::new(config.clone(), Device::Cpu).unwrap();
+    let loaded = load_backbone(&mut model, &path).unwrap();
+    assert_eq!(loaded, state.len() - 2);
+    let images = Tensor::rand([1, 3, 32, 32], (Kind::Float, Device::Cpu));
+    let features = |m: &ImplicitPdf| m.image_term(&images, false).unwrap();
+    // Same encoder now; the heads differ (seed 0 vs 7), so compare through the donor's head.
+    let donor_vars = donor.var_store().variables();
+    let model_vars = model.var_store().variables();
+    assert!(
+        donor_vars["encoder.layer3.0.conv1.weight"]
+            .equal(&model_vars["encoder.layer3.0.conv1.weight"])
+    );
+    assert!(!features(&model).equal(&features(&donor)));
+
+    // A ConvNeXt model finds none of its tensors in a ResNet file.
+    let mut convnext = ImplicitPdf::new(
+        ModelConfig {
+            encoder: EncoderKind::ConvnextTiny,
+            ..config
+        },
+        Device::Cpu,
+    )
+    .unwrap();
+    let err = load_backbone(&mut convnext, &path).unwrap_err();
+    assert!(
+        err.to_string()
+            .contains("missing (expected torchvision convnext-tiny"),
+        "{err}"
+    );
+}
+
+#[test]
+fn bad_images_and_labels_are_typed_errors() {
+    let model = ImplicitPdf::new(config(), Device::Cpu).unwrap();
+    let wrong_size = Tensor::rand([1, 3, SIZE + 1, SIZE], (Kind::Float, Device::Cpu));
+    let grey = Tensor::rand([1, 1, SIZE, SIZE], (Kind::Float, Device::Cpu));
+    for images in [wrong_size, grey] {
+        let err = model.image_term(&images, false).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                ModelError::ImageShape {
+                    field: "images",
+                    ..
+                }
+            ),
+            "{err}"
+        );
+    }
+    let mut trainer = Trainer::new(model, options()).unwrap();
+    let images = Tensor::rand([2, 3, SIZE, SIZE], (Kind::Float, Device::Cpu));
+    let one = vec![UnitQuaternion::identity()];
+    let err = trainer
+        .train_step(&images, &[one.clone(), vec![]])
+        .unwrap_err();
+    assert!(
+        matches!(err, ModelError::LabelSet { image: 1, .. }),
+        "{err}"
+    );
+    let err = trainer.train_step(&images, &[one]).unwrap_err();
+    assert!(matches!(err, ModelError::LabelSet { .. }), "{err}");
+    assert_eq!(trainer.step(), 0);
+    let bad = TrainOptions {
+        clip_norm: f64::NAN,
+        ..options()
+    };
+    let model = ImplicitPdf::new(config(), Device::Cpu).unwrap();
+    assert!(matches!(
+        Trainer::new(model, bad),
+        Err(ModelError::InvalidOption { .. })
+    ));
+    let err = ImplicitPdf::new(
+        ModelConfig {
+            input_size: 4,
+            ..config()
+        },
+        Device::Cpu,
+    )
+    .unwrap_err();
+    assert!(
+        matches!(
+            err,
+            ModelError::InvalidOption {
+                name: "input_size",
+                ..
+            }
+        ),
+        "{err}"
+    );
+}

@@ -1,0 +1,66 @@
+//! Tiny synthetic renders for the model tests: a flat-coloured cube under Lambert shading,
+//! whose images are identical under its 24 proper symmetries.
+#![allow(dead_code)]
+
+use depth_render::{Instance, Lighting, Material, PinholeCamera, Primitive, Scene, Window};
+use ipdf_model::{CropOptions, crop_object, crops_to_tensor};
+use metrics::SymmetryGroup;
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use tch::Tensor;
+
+/// Crops `[N, 3, size, size]` of a cube at `count` orientations, with those orientations and
+/// the cube's symmetry group. The orientations are a fixed generic tilt turned by a uniform
+/// random angle about the camera's optical axis: a one-parameter family in which every image
+/// shows one orientation up to the cube's symmetries, small enough to learn in seconds.
+pub struct CubeRenders {
+    pub images: Tensor,
+    pub poses: Vec<UnitQuaternion<f64>>,
+    pub group: SymmetryGroup,
+}
+
+pub fn cube_renders(count: usize, seed: u64, size: usize) -> CubeRenders {
+    let cube = Primitive::Cuboid { extents: [0.1; 3] };
+    let scene = Scene::new(&[cube.mesh().unwrap()]);
+    let camera = PinholeCamera::new(150.0, 150.0, 32.0, 32.0, 64, 64).unwrap();
+    let tilt = UnitQuaternion::from_euler_angles(0.5, 0.3, 0.2);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let poses: Vec<UnitQuaternion<f64>> = (0..count)
+        .map(|_| {
+            let angle = rng.random_range(0.0..std::f64::consts::TAU);
+            UnitQuaternion::from_axis_angle(&Vector3::z_axis(), angle) * tilt
+        })
+        .collect();
+    let crops: Vec<Vec<f32>> = poses
+        .iter()
+        .map(|rotation| {
+            let pose = Isometry3::from_parts(Translation3::new(0.0, 0.0, 0.5), *rotation);
+            let instances = [Instance::new(0, pose)];
+            let rendering = scene
+                .render(&camera, &instances, Window::full(&camera))
+                .unwrap();
+            let rgb = scene
+                .shade(
+                    &camera,
+                    &instances,
+                    &[Material::Uniform([0.9, 0.6, 0.2])],
+                    &Lighting::default(),
+                    &rendering,
+                )
+                .unwrap();
+            let rgb: Vec<u8> = rgb.concat();
+            let mask: Vec<u8> = rendering
+                .instance
+                .iter()
+                .map(|hit| u8::from(hit.is_some()))
+                .collect();
+            crop_object(&rgb, &mask, 64, 64, &CropOptions::new(size)).unwrap()
+        })
+        .collect();
+    CubeRenders {
+        images: crops_to_tensor(&crops, size).unwrap(),
+        poses,
+        group: cube.symmetry().unwrap(),
+    }
+}

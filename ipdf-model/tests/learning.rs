@@ -1,0 +1,190 @@
+//! The paper's central contrast on tiny cube renders: trained with the analytic symmetry set,
+//! the model's predicted set recalls the cube's 24 symmetries; trained with the single
+//! rendering pose, it does not.
+mod common;
+
+use ipdf_model::{
+    ArgmaxOptions, Augmentation, ImplicitPdf, LabelLoss, LabelledImages, LearningRateSchedule,
+    ModelConfig, Predictor, QuerySampling, RefineOptions, TrainOptions, Trainer,
+};
+use metrics::{
+    Distribution, GridCell, RECALL_THRESHOLD, llh, maad, nearest_distances, recall_maad,
+};
+use nalgebra::UnitQuaternion;
+use so3_grid::Grid;
+use tch::Device;
+
+const SIZE: usize = 32;
+const STEPS: u64 = 400;
+const BATCH: usize = 16;
+/// A symmetry counts as recalled when a predicted cell lies within this angle of it.
+const RECALLED_WITHIN_DEG: f64 = 20.0;
+
+/// Scores over the test images against their full symmetry sets, on the dense level-3 grid.
+struct Scores {
+    /// Mean log-likelihood.
+    llh: f64,
+    /// Mean Recall MAAD, degrees.
+    recall_maad: f64,
+    /// Mean fraction of the 24 symmetric orientations with a predicted cell (mass above
+    /// Recall MAAD's threshold) within [`RECALLED_WITHIN_DEG`].
+    recalled: f64,
+}
+
+fn score(model: &ImplicitPdf, test: &common::CubeRenders) -> Scores {
+    let grid = Grid::new(3).unwrap();
+    let mut predictor = Predictor::new(model);
+    let (mut total_llh, mut total_recall, mut total_recalled) = (0.0, 0.0, 0.0);
+    for (i, pose) in test.poses.iter().enumerate() {
+        let masses = predictor
+            .probabilities(&test.images.get(i as i64), 3)
+            .unwrap();
+        let distribution = Distribution::dense(&grid, masses).unwrap();
+        let truth = test.group.expand(pose);
+        total_llh += llh(&distribution, &truth).unwrap();
+        total_recall += recall_maad(&distribution, &truth, RECALL_THRESHOLD).unwrap();
+        let predicted: Vec<UnitQuaternion<f64>> = (0..distribution.len())
+            .filter(|&c| distribution.masses()[c] / 8.0 > RECALL_THRESHOLD) // level-4 cell volume
+            .map(|c| distribution.rotations()[c])
+            .collect();
+        let distances = nearest_distances(&truth, &predicted);
+        let within = distances
+            .iter()
+            .filter(|d| d.to_degrees() < RECALLED_WITHIN_DEG)
+            .count();
+        total_recalled += within as f64 / truth.len() as f64;
+    }
+    let n = test.poses.len() as f64;
+    Scores {
+        llh: total_llh / n,
+        recall_maad: total_recall / n,
+        recalled: total_recalled / n,
+    }
+}
+
+/// Mean |ΔLLH| and |ΔMAAD| (degrees) between the hierarchical evaluation (level 2 → 4, default
+/// budget) and the dense level-4 grid over the test images (printed), the largest query count
+/// of the hierarchy, and the mean distance (degrees) from the argmax to the nearest symmetric
+/// pose.
+fn hierarchy_against_dense(
+    model: &ImplicitPdf,
+    test: &common::CubeRenders,
+) -> (f64, f64, usize, f64) {
+    let grid = Grid::new(4).unwrap();
+    let mut predictor = Predictor::new(model);
+    let (mut llh_gap, mut maad_gap, mut most_queries, mut argmax_error) = (0.0, 0.0, 0, 0.0);
+    for (i, pose) in test.poses.iter().enumerate() {
+        let image = test.images.get(i as i64);
+        let truth = test.group.expand(pose);
+        let dense =
+            Distribution::dense(&grid, predictor.probabilities(&image, 4).unwrap()).unwrap();
+        let refined = predictor
+            .hierarchical(&image, &RefineOptions::default())
+            .unwrap();
+        most_queries = most_queries.max(refined.queries);
+        let cells = refined
+            .cells
+            .iter()
+            .map(|&(level, index)| GridCell { level, index })
+            .collect();
+        let refined = Distribution::from_cells(cells, refined.masses).unwrap();
+        llh_gap += (llh(&refined, &truth).unwrap() - llh(&dense, &truth).unwrap()).abs();
+        maad_gap += (maad(&refined, &truth).unwrap() - maad(&dense, &truth).unwrap()).abs();
+        let best = predictor.argmax(&image, &ArgmaxOptions::default()).unwrap();
+        argmax_error += nearest_distances(&[best.rotation], &truth)[0].to_degrees();
+    }
+    let n = test.poses.len() as f64;
+    (llh_gap / n, maad_gap / n, most_queries, argmax_error / n)
+}
+
+fn train(train: &common::CubeRenders, label_sets: Vec<Vec<UnitQuaternion<f64>>>) -> ImplicitPdf {
+    let config = ModelConfig {
+        head_sizes: vec![64, 64],
+        ..ModelConfig::small(SIZE as i64)
+    };
+    let model = ImplicitPdf::new(config, Device::Cpu).unwrap();
+    let options = TrainOptions {
+        schedule: LearningRateSchedule {
+            peak: 5e-3,
+            warmup_steps: 20,
+            total_steps: STEPS,
+        },
+        queries: QuerySampling::Grid { level: 2 },
+        label_loss: LabelLoss::WholeSet,
+        augmentation: Augmentation::NONE,
+        ..TrainOptions::default()
+    };
+    let data = LabelledImages::new(train.images.shallow_clone(), label_sets).unwrap();
+    let mut trainer = Trainer::new(model, options).unwrap();
+    let order: Vec<usize> = (0..data.len()).collect();
+    for step in 0..STEPS as usize {
+        let indices: Vec<usize> = (0..BATCH)
+            .map(|i| order[(step * BATCH + i) % order.len()])
+            .collect();
+        let (images, sets) = data.batch(&indices);
+        trainer.train_step(&images, &sets).unwrap();
+    }
+    trainer.into_model()
+}
+
+#[test]
+fn symmetry_sets_are_learned_from_set_labels_and_not_from_single_labels() {
+    let started = std::time::Instant::now();
+    let train_set = common::cube_renders(256, 1, SIZE);
+    let test_set = common::cube_renders(16, 2, SIZE);
+    let analytic_sets = train_set
+        .poses
+        .iter()
+        .map(|pose| train_set.group.expand(pose))
+        .collect();
+    let single_sets = train_set.poses.iter().map(|pose| vec![*pose]).collect();
+
+    let analytic_model = train(&train_set, analytic_sets);
+    let analytic = score(&analytic_model, &test_set);
+    let single_model = train(&train_set, single_sets);
+    let single = score(&single_model, &test_set);
+    println!(
+        "analytic: LLH {:.2}, recall MAAD {:.1}°, {:.0}% recalled; \
+         single: LLH {:.2}, recall MAAD {:.1}°, {:.0}% recalled; {:.0} s",
+        analytic.llh,
+        analytic.recall_maad,
+        100.0 * analytic.recalled,
+        single.llh,
+        single.recall_maad,
+        100.0 * single.recalled,
+        started.elapsed().as_secs_f64()
+    );
+    for (name, model) in [("analytic", &analytic_model), ("single", &single_model)] {
+        let (llh_gap, maad_gap, queries, argmax_error) = hierarchy_against_dense(model, &test_set);
+        println!(
+            "{name}: hierarchical − dense level 4: |ΔLLH| {llh_gap:.4}, |ΔMAAD| {maad_gap:.3}°, \
+             ≤ {queries} queries; argmax {argmax_error:.1}° from the nearest symmetric pose"
+        );
+        // Not asserted: these briefly trained models put sub-cell spikes at training labels
+        // (the level-2 training queries never sample them), which level-2 centres can miss.
+        // The hierarchy is checked against dense evaluation on an analytic density in
+        // `tests/model.rs`.
+        assert!(queries * 20 <= 294_912, "{name}: {queries} queries");
+        if name == "analytic" {
+            assert!(argmax_error < 10.0, "{name}: argmax {argmax_error}°");
+        }
+    }
+    let uniform_llh = -std::f64::consts::PI.powi(2).ln();
+    assert!(
+        analytic.llh > uniform_llh + 3.0,
+        "analytic LLH {}",
+        analytic.llh
+    );
+    assert!(
+        analytic.recalled > 0.6,
+        "analytic recalled {}",
+        analytic.recalled
+    );
+    assert!(single.recalled < 0.3, "single recalled {}", single.recalled);
+    assert!(
+        single.recall_maad > analytic.recall_maad + 30.0,
+        "recall MAAD: single {}°, analytic {}°",
+        single.recall_maad,
+        analytic.recall_maad
+    );
+}

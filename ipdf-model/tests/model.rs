@@ -1,0 +1,227 @@
+//! The model's shapes, gradients, distributions and refinement, through the public API.
+use ipdf_model::{
+    EncoderKind, ImplicitPdf, ModelConfig, Predictor, RefineOptions, TrainOptions, Trainer, refine,
+    set_nll,
+};
+use nalgebra::UnitQuaternion;
+use proptest::prelude::*;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use so3_grid::{Grid, geodesic_distance};
+use tch::{Device, Kind, Tensor};
+
+fn images(count: i64, size: i64, seed: i64) -> Tensor {
+    let values: Vec<f32> = (0..count * 3 * size * size)
+        .map(|i| ((i * 7919 + seed * 104_729) % 1000) as f32 / 1000.0)
+        .collect();
+    Tensor::from_slice(&values).reshape([count, 3, size, size])
+}
+
+#[test]
+fn every_encoder_gives_one_score_per_query() {
+    for (encoder, size, features) in [
+        (EncoderKind::SmallCnn, 32, 256),
+        (EncoderKind::Resnet18, 64, 512),
+        (EncoderKind::Resnet18Stage3, 64, 256 * 4 * 4),
+        (EncoderKind::ConvnextTiny, 64, 768),
+    ] {
+        let config = ModelConfig {
+            encoder,
+            input_size: size,
+            head_sizes: vec![16, 16],
+            ..ModelConfig::default()
+        };
+        let model = ImplicitPdf::new(config, Device::Cpu).unwrap();
+        let image_term = model.image_term(&images(2, size, 1), false).unwrap();
+        assert_eq!(image_term.size(), [2, 16], "{encoder}");
+        let first_layer = model.var_store().variables()["head.image.weight"].size();
+        assert_eq!(first_layer, [16, features], "{encoder}");
+        let rotations =
+            ipdf_model::rotations_to_tensor(&Grid::new(0).unwrap().rotations(), Device::Cpu);
+        let scores = model.scores(&image_term.unsqueeze(1), &model.query_term(&rotations));
+        assert_eq!(scores.size(), [2, 72], "{encoder}");
+        assert!(f64::try_from(scores.isfinite().all().to_kind(Kind::Double)).unwrap() == 1.0);
+    }
+}
+
+#[test]
+fn weights_depend_only_on_the_seed() {
+    let config = ModelConfig::small(32);
+    let a = ImplicitPdf::new(config.clone(), Device::Cpu).unwrap();
+    let b = ImplicitPdf::new(config.clone(), Device::Cpu).unwrap();
+    let c = ImplicitPdf::new(ModelConfig { seed: 1, ..config }, Device::Cpu).unwrap();
+    let weight =
+        |m: &ImplicitPdf| m.var_store().variables()["head.hidden.0.weight"].shallow_clone();
+    assert!(weight(&a).equal(&weight(&b)));
+    assert!(!weight(&a).equal(&weight(&c)));
+}
+
+#[test]
+fn loss_gradient_matches_finite_differences() {
+    let config = ModelConfig {
+        head_sizes: vec![8, 8],
+        ..ModelConfig::small(16)
+    };
+    let mut model = ImplicitPdf::new(config, Device::Cpu).unwrap();
+    model.var_store_mut().double();
+    let options = TrainOptions {
+        queries: ipdf_model::QuerySampling::Uniform { count: 64 },
+        ..TrainOptions::default()
+    };
+    let trainer = Trainer::new(model, options).unwrap();
+    let batch = images(2, 16, 3).to_kind(Kind::Double);
+    let labels = vec![
+        vec![
+            UnitQuaternion::from_euler_angles(0.1, 0.2, 0.3),
+            UnitQuaternion::identity(),
+        ],
+        vec![UnitQuaternion::from_euler_angles(-1.0, 0.5, 2.0)],
+    ];
+    let loss_at = |trainer: &Trainer| {
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        trainer.loss(&batch, &labels, &mut rng, false).unwrap()
+    };
+    let loss = loss_at(&trainer);
+    loss.backward();
+    let variables = trainer.model().var_store().variables();
+    for name in [
+        "head.hidden.0.weight",
+        "head.query.weight",
+        "head.image.bias",
+    ] {
+        let mut parameter = variables[name].shallow_clone();
+        let analytic = parameter.grad().reshape([-1]);
+        for index in [0i64, 5] {
+            let h = 1e-6;
+            let shift = |delta: f64| {
+                tch::no_grad(|| {
+                    let flat = parameter.view([-1]);
+                    let _ = flat
+                        .get(index)
+                        .g_add_(&Tensor::from(delta).to_kind(Kind::Double));
+                })
+            };
+            shift(h);
+            let up = f64::try_from(loss_at(&trainer)).unwrap();
+            shift(-2.0 * h);
+            let down = f64::try_from(loss_at(&trainer)).unwrap();
+            shift(h);
+            let numeric = (up - down) / (2.0 * h);
+            let exact = f64::try_from(analytic.get(index)).unwrap();
+            assert!(
+                (numeric - exact).abs() < 1e-6 * (1.0 + exact.abs()),
+                "{name}[{index}]: finite difference {numeric}, autograd {exact}"
+            );
+            let _ = &mut parameter;
+        }
+    }
+}
+
+#[test]
+fn dense_distribution_sums_to_one_and_hierarchy_agrees_where_the_mass_is() {
+    let model = ImplicitPdf::new(ModelConfig::small(32), Device::Cpu).unwrap();
+    let mut predictor = Predictor::new(&model);
+    let image = images(1, 32, 5).get(0);
+    let dense = predictor.probabilities(&image, 3).unwrap();
+    assert_eq!(dense.len(), 36_864);
+    assert!((dense.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+    assert!(dense.iter().all(|&m| m > 0.0));
+    // Refining every cell from level 2 reproduces the dense level 3 exactly.
+    let options = RefineOptions {
+        level: 3,
+        keep_mass: 1.0,
+        max_cells: 4_608,
+        ..RefineOptions::default()
+    };
+    let refined = predictor.hierarchical(&image, &options).unwrap();
+    assert_eq!(refined.queries, 4_608 + 36_864);
+    for ((level, index), mass) in refined.cells.iter().zip(&refined.masses) {
+        assert_eq!(*level, 3);
+        assert!((mass - dense[*index as usize]).abs() < 1e-9 * (1.0 + dense[*index as usize]));
+    }
+}
+
+/// `F` peaked at `centre` with a width of about `1/√sharpness` radians.
+fn analytic_scores(
+    level: u8,
+    cells: &[u64],
+    centre: &UnitQuaternion<f64>,
+    sharpness: f64,
+) -> Vec<f64> {
+    let grid = Grid::new(level).unwrap();
+    cells
+        .iter()
+        .map(|&i| -sharpness * geodesic_distance(&grid.rotation(i).unwrap(), centre).powi(2))
+        .collect()
+}
+
+#[test]
+fn hierarchical_evaluation_matches_dense_level_4_on_an_analytic_density() {
+    let centre = UnitQuaternion::from_euler_angles(0.7, -0.4, 2.2);
+    let grid = Grid::new(4).unwrap();
+    let all: Vec<u64> = (0..grid.len()).collect();
+    let dense_scores = analytic_scores(4, &all, &centre, 50.0);
+    let peak = dense_scores
+        .iter()
+        .copied()
+        .fold(f64::NEG_INFINITY, f64::max);
+    let total: f64 = dense_scores.iter().map(|s| (s - peak).exp()).sum();
+    let options = RefineOptions::default();
+    let refined = refine(|l, c| Ok(analytic_scores(l, c, &centre, 50.0)), &options).unwrap();
+    assert!(
+        refined.queries * 20 <= all.len(),
+        "{} queries",
+        refined.queries
+    );
+    // The density at the centre, and the mass on level-4 cells, agree with the dense grid.
+    let cell = grid.locate(&centre).unwrap();
+    let position = refined.cells.iter().position(|&c| c == (4, cell)).unwrap();
+    let dense_mass = (dense_scores[cell as usize] - peak).exp() / total;
+    let log_ratio = (refined.masses[position] / dense_mass).ln();
+    println!(
+        "ln(refined / dense) at the peak: {log_ratio:.2e}, {} queries",
+        refined.queries
+    );
+    assert!(log_ratio.abs() < 0.02, "{log_ratio}");
+    let fine_mass: f64 = refined
+        .cells
+        .iter()
+        .zip(&refined.masses)
+        .filter(|(c, _)| c.0 == 4)
+        .map(|(_, m)| m)
+        .sum();
+    assert!(fine_mass > 0.999, "{fine_mass}");
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(16))]
+
+    #[test]
+    fn refined_masses_sum_to_one_and_equal_dense_when_all_is_refined(
+        yaw in -3.1f64..3.1, pitch in -1.5f64..1.5, roll in -3.1f64..3.1, sharpness in 0.0f64..200.0,
+    ) {
+        let centre = UnitQuaternion::from_euler_angles(roll, pitch, yaw);
+        let everything = RefineOptions { start_level: 0, level: 1, keep_mass: 1.0, max_cells: 72 };
+        let refined = refine(|l, c| Ok(analytic_scores(l, c, &centre, sharpness)), &everything).unwrap();
+        let dense = analytic_scores(1, &(0..576).collect::<Vec<_>>(), &centre, sharpness);
+        let peak = dense.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let total: f64 = dense.iter().map(|s| (s - peak).exp()).sum();
+        prop_assert!((refined.masses.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+        for ((_, index), mass) in refined.cells.iter().zip(&refined.masses) {
+            prop_assert!((mass - (dense[*index as usize] - peak).exp() / total).abs() < 1e-12);
+        }
+        let budget = RefineOptions { start_level: 0, level: 2, keep_mass: 0.9, max_cells: 5 };
+        let partial = refine(|l, c| Ok(analytic_scores(l, c, &centre, sharpness)), &budget).unwrap();
+        prop_assert!((partial.masses.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+        prop_assert!(partial.queries <= 72 + 2 * 40);
+    }
+
+    #[test]
+    fn equal_scores_give_the_uniform_density(count in 2i64..500, labels in 1i64..5, level in -5.0f64..5.0) {
+        let queries = Tensor::full([2, count], level, (Kind::Double, Device::Cpu));
+        let label_scores = Tensor::full([2, labels], level, (Kind::Double, Device::Cpu));
+        let mask = Tensor::ones([2, labels], (Kind::Double, Device::Cpu));
+        let nll = f64::try_from(set_nll(&queries, &label_scores, &mask)).unwrap();
+        prop_assert!((nll - std::f64::consts::PI.powi(2).ln()).abs() < 1e-9);
+    }
+}
