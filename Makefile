@@ -43,10 +43,18 @@ $(BENCH_VENV)/.ready-open3d: $(BENCH_VENV)/.ready
 	$(BENCH_VENV)/bin/pip install --quiet open3d-cpu==0.20.0
 	touch $@
 
-bench-python: $(BENCH_VENV)/.ready $(BENCH_VENV)/.ready-open3d
+# torch 2.11.0 (the libtorch the Rust crate links) for the training-step baseline. PyPI's wheel is
+# the CUDA build, and `import torch` needs its CUDA libraries (cuDNN, cuBLAS, …) even on a CPU:
+# about 4 GB, once.
+$(BENCH_VENV)/.ready-torch: $(BENCH_VENV)/.ready
+	$(BENCH_VENV)/bin/pip install --quiet torch==2.11.0
+	touch $@
+
+bench-python: $(BENCH_VENV)/.ready $(BENCH_VENV)/.ready-open3d $(BENCH_VENV)/.ready-torch
 	$(BENCH_VENV)/bin/python benches/python/healpy_grid.py
 	mkdir -p runs/bench
 	$(BENCH_VENV)/bin/python benches/python/open3d_raycast.py --json runs/bench/open3d_raycast.json
 	$(CARGO) run --release -p examples --example registration_trials -- --out runs/bench/registration --repeat 3
 	$(BENCH_VENV)/bin/python benches/python/open3d_registration.py runs/bench/registration --repeat 3 \
 		--json runs/bench/open3d_registration.json
+	$(BENCH_VENV)/bin/python benches/python/ipdf_train_step.py --json runs/bench/pytorch_train_step.json
