@@ -1,14 +1,15 @@
 //! ipdf-model hot paths: a training step (batch 32, 96×96 crops, level-2 grid queries, head
 //! 4 × 256) with the small CNN and with ResNet-18, in images/s; the dense level-4 distribution
-//! of one image (294,912 queries) and its hierarchical evaluation (level 2 → 4, ≤ 13,824
-//! queries). Compare the training steps with `benches/python/ipdf_train_step.py`, the same
+//! of one image (294,912 queries) and its hierarchical evaluation (level 2 → 4, ≤ 14,336
+//! queries), each in float32 and with a bfloat16 head. Compare the training steps with `benches/python/ipdf_train_step.py`, the same
 //! step in PyTorch on the same libtorch.
 use std::hint::black_box;
 use std::time::Duration;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use ipdf_model::{
-    EncoderKind, ImplicitPdf, ModelConfig, Predictor, RefineOptions, TrainOptions, Trainer,
+    EncoderKind, ImplicitPdf, ModelConfig, Precision, Predictor, RefineOptions, TrainOptions,
+    Trainer,
 };
 use nalgebra::UnitQuaternion;
 use so3_grid::random_rotations;
@@ -54,18 +55,20 @@ fn evaluation(c: &mut Criterion) {
     group.sample_size(10);
     let model = ImplicitPdf::new(config(EncoderKind::Resnet18), Device::Cpu).unwrap();
     let image = Tensor::rand([3, SIZE, SIZE], (Kind::Float, Device::Cpu));
-    let mut predictor = Predictor::new(&model);
-    // The first call builds and caches the level-4 query term.
-    predictor.probabilities(&image, 4).unwrap();
-    group.throughput(Throughput::Elements(294_912));
-    group.bench_function("dense_level4_resnet18_96px", |b| {
-        b.iter(|| black_box(predictor.probabilities(&image, 4).unwrap()))
-    });
     let options = RefineOptions::default();
-    group.throughput(Throughput::Elements(1));
-    group.bench_function("hierarchical_level4_resnet18_96px", |b| {
-        b.iter(|| black_box(predictor.hierarchical(&image, &options).unwrap()))
-    });
+    for (suffix, precision) in [("", Precision::Model), ("_bf16", Precision::BFloat16)] {
+        let mut predictor = Predictor::with_precision(&model, precision);
+        // The first call builds and caches the level-4 query term.
+        predictor.probabilities(&image, 4).unwrap();
+        group.throughput(Throughput::Elements(294_912));
+        group.bench_function(format!("dense_level4_resnet18_96px{suffix}"), |b| {
+            b.iter(|| black_box(predictor.probabilities(&image, 4).unwrap()))
+        });
+        group.throughput(Throughput::Elements(1));
+        group.bench_function(format!("hierarchical_level4_resnet18_96px{suffix}"), |b| {
+            b.iter(|| black_box(predictor.hierarchical(&image, &options).unwrap()))
+        });
+    }
     group.finish();
 }
 

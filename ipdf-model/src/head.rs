@@ -45,6 +45,20 @@ impl Head {
         self.output.kind()
     }
 
+    /// A detached copy of the head with parameters of element kind `kind` (for inference).
+    pub(crate) fn to_kind(&self, kind: tch::Kind) -> Self {
+        Self {
+            image: self.image.to_kind(kind),
+            query: self.query.to_kind(kind),
+            hidden: self
+                .hidden
+                .iter()
+                .map(|layer| layer.to_kind(kind))
+                .collect(),
+            output: self.output.to_kind(kind),
+        }
+    }
+
     /// The image term `[B, H]` from features `[B, D]`.
     pub(crate) fn image_term(&self, features: &Tensor) -> Tensor {
         self.image.forward(features)

@@ -128,6 +128,14 @@ impl Linear {
         self.weight.kind()
     }
 
+    /// A detached copy of the layer with parameters of element kind `kind`.
+    pub(crate) fn to_kind(&self, kind: tch::Kind) -> Self {
+        Self {
+            weight: self.weight.detach().to_kind(kind),
+            bias: self.bias.detach().to_kind(kind),
+        }
+    }
+
     pub(crate) fn forward(&self, xs: &Tensor) -> Tensor {
         xs.linear(&self.weight, Some(&self.bias))
     }

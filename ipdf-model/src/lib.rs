@@ -14,7 +14,9 @@
 //!   and colour augmentation ([`Augmentation`]); seeded. [`fit`] adds epochs, validation LLH,
 //!   `train_log.csv` and checkpoints (`.safetensors` + JSON, atomic, resumable).
 //! - [`Predictor`]: the normalised distribution on a grid level (chunked), hierarchical
-//!   refinement ([`refine`]: level 2, then only the cells holding the mass), and the most
+//!   refinement ([`refine`]: level 2, then best-first only the cells holding the mass, within a
+//!   query budget), `ln p(R | I)` at any rotation ([`Predictor::log_densities`], the
+//!   reference's log-likelihood), a bfloat16 head for speed ([`Precision`]), and the most
 //!   likely rotation by gradient ascent ([`Predictor::argmax`]).
 //!
 //! ```
@@ -36,7 +38,10 @@
 //! let masses = predictor.probabilities(&images.get(0), 1)?; // 576 cells
 //! assert!((masses.iter().sum::<f64>() - 1.0).abs() < 1e-6);
 //! let refined = predictor.hierarchical(&images.get(0), &RefineOptions { level: 3, ..Default::default() })?;
-//! assert!(refined.queries < 4_608 + 2 * 8 * 576 + 1);
+//! assert!(refined.queries <= RefineOptions::default().max_queries);
+//! // ln p(R | I) at any rotation, with the refined distribution's normaliser.
+//! let log_density = predictor.log_densities(&images.get(0), &[half_turn], &refined)?;
+//! assert!(log_density[0].is_finite());
 //! # Ok::<(), ipdf_model::ModelError>(())
 //! ```
 mod augment;
@@ -68,7 +73,7 @@ pub use fit::{EpochReport, FitOptions, LabelledImages, TRAIN_LOG, fit, validatio
 pub use loss::{LabelLoss, QuerySampling, label_set_from_matrices, set_nll};
 pub use model::{ImplicitPdf, ModelConfig};
 pub use optim::LearningRateSchedule;
-pub use predict::{Argmax, ArgmaxOptions, Predictor};
+pub use predict::{Argmax, ArgmaxOptions, Precision, Predictor};
 pub use pretrained::load_backbone;
 pub use refine::{CellMasses, RefineOptions, refine};
 pub use train::{StepReport, TrainOptions, Trainer};

@@ -151,6 +151,11 @@ impl ImplicitPdf {
         self.head.kind()
     }
 
+    /// The head, for inference copies in another precision.
+    pub(crate) fn head(&self) -> &Head {
+        &self.head
+    }
+
     /// The parameters, named as in torchvision under `encoder.` and as `head.*`.
     pub fn var_store(&self) -> &nn::VarStore {
         &self.var_store

@@ -114,13 +114,19 @@ impl Adam {
                 if !grad.defined() {
                     continue;
                 }
-                let _ = m.g_mul_scalar_(BETA1).g_add_(&(&grad * (1.0 - BETA1)));
-                let _ = v
-                    .g_mul_scalar_(BETA2)
-                    .g_add_(&(grad.square() * (1.0 - BETA2)));
-                let denominator = (&*v / correction2).sqrt() + EPSILON;
-                let update = &*m / denominator * (learning_rate / correction1);
-                let _ = param.g_sub_(&update);
+                // In place, two temporaries per tensor: m ← β₁m + (1−β₁)g, v ← β₂v + (1−β₂)g²,
+                // θ ← θ − lr/c₁ · m / (√(v/c₂) + ε).
+                let _ = m.lerp_(&grad, 1.0 - BETA1);
+                let _ = v.lerp_(&grad.square(), 1.0 - BETA2);
+                if learning_rate == 0.0 {
+                    continue;
+                }
+                let mut denominator = v.sqrt();
+                let _ = denominator
+                    .g_div_scalar_(correction2.sqrt())
+                    .g_add_scalar_(EPSILON)
+                    .g_mul_scalar_(-correction1 / learning_rate);
+                let _ = param.addcdiv_(m, &denominator);
             }
         });
     }

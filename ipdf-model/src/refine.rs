@@ -13,6 +13,9 @@ pub struct CellMasses {
     pub masses: Vec<f64>,
     /// How many rotations the density was evaluated at.
     pub queries: usize,
+    /// `ln Z`, `Z = Σ exp(F) · volume` over the cells: the normaliser of `F`, so that the
+    /// density at any rotation `R` is `exp(F(R) − ln Z)` (see `Predictor::log_densities`).
+    pub log_normaliser: f64,
 }
 
 impl CellMasses {
@@ -33,21 +36,23 @@ pub struct RefineOptions {
     pub start_level: u8,
     /// The finest level.
     pub level: u8,
-    /// Refine the densest cells that together hold this fraction of the mass (1: all)…
+    /// Refinement stops once the cells coarser than `level` hold less than `1 − keep_mass` of
+    /// the mass (1: refine everything down to `level`)…
     pub keep_mass: f64,
-    /// …but at most this many cells per level (each refined cell costs 8 queries).
-    pub max_cells: usize,
+    /// …or when refining another cell (8 queries) would exceed this many queries in all.
+    pub max_queries: usize,
 }
 
 impl Default for RefineOptions {
-    /// Level 2 to level 4, refining up to 576 cells per level holding 99.99% of the mass: at
-    /// most 4,608 + 2 · 4,608 = 13,824 queries, 21× fewer than the 294,912 of dense level 4.
+    /// Level 2 to level 4 until 99.99% of the mass is at level 4, in at most 14,336 queries
+    /// (4,608 for level 2, then 1,216 refined cells): 20.6× fewer than the 294,912 of dense
+    /// level 4.
     fn default() -> Self {
         Self {
             start_level: 2,
             level: 4,
             keep_mass: 0.9999,
-            max_cells: 576,
+            max_queries: 14_336,
         }
     }
 }
@@ -70,12 +75,19 @@ impl RefineOptions {
                 format!("{}: the dense start goes up to level 4", self.start_level),
             ));
         }
-        if !(self.keep_mass > 0.0 && self.keep_mass <= 1.0) || self.max_cells == 0 {
+        if !(self.keep_mass > 0.0 && self.keep_mass <= 1.0) {
             return Err(ModelError::option(
                 "keep_mass",
+                format!("{}: need a fraction in (0, 1]", self.keep_mass),
+            ));
+        }
+        let start_cells = cell_count(self.start_level) as usize;
+        if self.max_queries < start_cells {
+            return Err(ModelError::option(
+                "max_queries",
                 format!(
-                    "keep_mass {} and max_cells {}: need (0, 1] and ≥ 1",
-                    self.keep_mass, self.max_cells
+                    "{}: the dense start alone takes {start_cells}",
+                    self.max_queries
                 ),
             ));
         }
@@ -83,64 +95,88 @@ impl RefineOptions {
     }
 }
 
+/// The fewest cells refined per round (512 queries); a round refines half of what the
+/// remaining budget affords when that is more, so that a budget takes a few large rounds.
+const MIN_ROUND: usize = 64;
+
+/// A cell of the current partition: `(level, index, ln(exp F · volume))`.
+type Leaf = (u8, u64, f64);
+
 /// The distribution of an unnormalised log-density `log_density(level, cells) → F` (one value
-/// per cell centre), refined from `options.start_level` to `options.level`. Unrefined cells keep
-/// their coarse mass `exp F · volume`; all masses are normalised together at the end. When every
-/// cell holding mass is refined this equals the dense evaluation at `options.level`.
+/// per cell centre), refined best-first from a dense `options.start_level` grid: each round
+/// replaces the heaviest cells coarser than `options.level` (see [`MIN_ROUND`]) by their 8
+/// children,
+/// until those coarse cells hold less than `1 − keep_mass` of the mass or the query budget is
+/// spent. Unrefined cells keep their coarse mass `exp F · volume`; all masses are normalised
+/// together at the end. When every cell is refined this equals the dense evaluation at
+/// `options.level`.
 pub fn refine<F>(mut log_density: F, options: &RefineOptions) -> Result<CellMasses, ModelError>
 where
     F: FnMut(u8, &[u64]) -> Result<Vec<f64>, ModelError>,
 {
     options.validate()?;
-    let mut level = options.start_level;
-    let mut active: Vec<u64> = (0..cell_count(level)).collect();
-    let mut scores = log_density(level, &active)?;
-    let mut queries = active.len();
-    // Frozen cells: (level, index, log mass).
-    let mut frozen: Vec<(u8, u64, f64)> = Vec::new();
-    while level < options.level {
-        let log_volume = cell_volume(level).ln();
-        let mut order: Vec<usize> = (0..active.len()).collect();
-        order.sort_by(|&a, &b| scores[b].total_cmp(&scores[a]));
-        let log_masses: Vec<f64> = order.iter().map(|&i| scores[i] + log_volume).collect();
-        let frozen_log_masses = frozen.iter().map(|c| c.2);
-        let log_total = log_sum_exp(log_masses.iter().copied().chain(frozen_log_masses));
-        let mut kept = 0;
-        let mut cumulative = 0.0;
-        while kept < order.len().min(options.max_cells)
-            && (kept == 0 || options.keep_mass >= 1.0 || cumulative < options.keep_mass)
-        {
-            cumulative += (log_masses[kept] - log_total).exp();
-            kept += 1;
-        }
-        frozen.extend(
-            order[kept..]
-                .iter()
-                .zip(&log_masses[kept..])
-                .map(|(&i, &m)| (level, active[i], m)),
-        );
-        let mut next = Vec::with_capacity(8 * kept);
-        for &i in &order[..kept] {
-            next.extend(children(level, active[i])?);
-        }
-        next.sort_unstable();
-        level += 1;
-        scores = log_density(level, &next)?;
-        queries += next.len();
-        active = next;
-    }
-    let log_volume = cell_volume(level).ln();
-    frozen.extend(
-        active
+    let start = options.start_level;
+    let cells: Vec<u64> = (0..cell_count(start)).collect();
+    let scores = log_density(start, &cells)?;
+    let log_volume = cell_volume(start).ln();
+    let mut leaves: Vec<Leaf> = cells
+        .iter()
+        .zip(&scores)
+        .map(|(&index, &score)| (start, index, score + log_volume))
+        .collect();
+    let mut queries = cells.len();
+    loop {
+        let log_total = log_sum_exp(leaves.iter().map(|leaf| leaf.2));
+        let mut coarse: Vec<usize> = (0..leaves.len())
+            .filter(|&i| leaves[i].0 < options.level)
+            .collect();
+        let coarse_mass: f64 = coarse
             .iter()
-            .zip(&scores)
-            .map(|(&index, &score)| (level, index, score + log_volume)),
-    );
-    let log_total = log_sum_exp(frozen.iter().map(|c| c.2));
+            .map(|&i| (leaves[i].2 - log_total).exp())
+            .sum();
+        let affordable = (options.max_queries - queries) / 8;
+        if coarse.is_empty() || affordable == 0 || coarse_mass < 1.0 - options.keep_mass {
+            break;
+        }
+        let round = (affordable / 2).max(MIN_ROUND).min(affordable);
+        if round < coarse.len() {
+            coarse.select_nth_unstable_by(round, |&a, &b| {
+                leaves[b].2.total_cmp(&leaves[a].2).then(a.cmp(&b))
+            });
+            coarse.truncate(round);
+        }
+        coarse.sort_unstable();
+        let mut by_level: Vec<(u8, Vec<u64>)> = Vec::new();
+        for &i in coarse.iter().rev() {
+            let (level, index, _) = leaves.swap_remove(i);
+            let children = children(level, index)?;
+            match by_level.iter_mut().find(|(l, _)| *l == level + 1) {
+                Some((_, cells)) => cells.extend(children),
+                None => by_level.push((level + 1, children.collect())),
+            }
+        }
+        for (level, mut cells) in by_level {
+            cells.sort_unstable();
+            let scores = log_density(level, &cells)?;
+            let log_volume = cell_volume(level).ln();
+            queries += cells.len();
+            leaves.extend(
+                cells
+                    .iter()
+                    .zip(&scores)
+                    .map(|(&index, &score)| (level, index, score + log_volume)),
+            );
+        }
+    }
+    let log_total = log_sum_exp(leaves.iter().map(|leaf| leaf.2));
     Ok(CellMasses {
-        cells: frozen.iter().map(|c| (c.0, c.1)).collect(),
-        masses: frozen.iter().map(|c| (c.2 - log_total).exp()).collect(),
+        cells: leaves.iter().map(|leaf| (leaf.0, leaf.1)).collect(),
+        masses: leaves
+            .iter()
+            .map(|leaf| (leaf.2 - log_total).exp())
+            .collect(),
         queries,
+        log_normaliser: log_total,
     })
 }
 
@@ -174,7 +210,7 @@ mod tests {
             start_level: 0,
             level: 1,
             keep_mass: 1.0,
-            max_cells: usize::MAX,
+            max_queries: usize::MAX,
         };
         let refined = refine(|l, c| Ok(peaked(l, c, &centre)), &options).unwrap();
         let dense = peaked(1, &(0..576).collect::<Vec<_>>(), &centre);
@@ -193,12 +229,31 @@ mod tests {
             start_level: 1,
             level: 3,
             keep_mass: 0.99,
-            max_cells: 10,
+            max_queries: 576 + 160,
         };
         let refined = refine(|l, c| Ok(peaked(l, c, &centre)), &options).unwrap();
-        assert!(refined.queries <= 576 + 2 * 80);
+        assert!(refined.queries <= 576 + 160);
         assert!((refined.masses.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+        // Unbudgeted, the normaliser of this peak of width 1/√40 rad matches the integral: near
+        // the identity the volume element is d³ω / 8 (SO(3) has volume π²), so
+        // ∫ exp(−20 |ω|²) ≈ (π/20)^{3/2} / 8.
+        let unbudgeted = RefineOptions {
+            max_queries: usize::MAX,
+            ..options
+        };
+        let full = refine(|l, c| Ok(peaked(l, c, &centre)), &unbudgeted).unwrap();
+        let expected = ((std::f64::consts::PI / 20.0).powf(1.5) / 8.0).ln();
+        assert!(
+            (full.log_normaliser - expected).abs() < 0.05,
+            "{}",
+            full.log_normaliser
+        );
+        // The budgeted refinement found the peak: its densest cell is refined and holds it.
         let densest = refined.densest(1)[0];
-        assert_eq!(refined.cells[densest].0, 3);
+        let (level, index) = refined.cells[densest];
+        assert!(level >= 2, "{level}");
+        assert_eq!(Grid::new(level).unwrap().locate(&centre).unwrap(), index);
+        let densest = full.densest(1)[0];
+        assert_eq!(full.cells[densest].0, 3);
     }
 }

@@ -5,7 +5,7 @@ mod common;
 
 use ipdf_model::{
     ArgmaxOptions, Augmentation, ImplicitPdf, LabelLoss, LabelledImages, LearningRateSchedule,
-    ModelConfig, Predictor, QuerySampling, RefineOptions, TrainOptions, Trainer,
+    ModelConfig, Precision, Predictor, QuerySampling, RefineOptions, TrainOptions, Trainer,
 };
 use metrics::{
     Distribution, GridCell, RECALL_THRESHOLD, llh, maad, nearest_distances, recall_maad,
@@ -62,39 +62,75 @@ fn score(model: &ImplicitPdf, test: &common::CubeRenders) -> Scores {
     }
 }
 
-/// Mean |ΔLLH| and |ΔMAAD| (degrees) between the hierarchical evaluation (level 2 → 4, default
-/// budget) and the dense level-4 grid over the test images (printed), the largest query count
-/// of the hierarchy, and the mean distance (degrees) from the argmax to the nearest symmetric
-/// pose.
-fn hierarchy_against_dense(
-    model: &ImplicitPdf,
-    test: &common::CubeRenders,
-) -> (f64, f64, usize, f64) {
-    let grid = Grid::new(4).unwrap();
+/// How the hierarchical evaluation (level 2 → 4, default budget) compares with the dense
+/// level-4 grid over the test images.
+#[derive(Debug, Default)]
+struct HierarchyGaps {
+    /// Mean |ΔLLH| of the reference's log-likelihood, `F(R_gt) − ln Z`.
+    llh: f64,
+    /// The same for the hierarchy evaluated in bfloat16 against the dense float32 grid.
+    llh_bf16: f64,
+    /// Mean |ΔLLH| of the cell-based log-likelihood (`metrics::llh`: the density of the cell
+    /// holding each ground-truth rotation).
+    cell_llh: f64,
+    /// Mean |ΔMAAD|, degrees.
+    maad: f64,
+    /// The largest query count of the hierarchy.
+    queries: usize,
+    /// Mean distance (degrees) from the argmax to the nearest symmetric pose.
+    argmax_error: f64,
+}
+
+fn distribution(masses: ipdf_model::CellMasses) -> Distribution {
+    let cells = masses
+        .cells
+        .iter()
+        .map(|&(level, index)| GridCell { level, index })
+        .collect();
+    Distribution::from_cells(cells, masses.masses).unwrap()
+}
+
+fn hierarchy_against_dense(model: &ImplicitPdf, test: &common::CubeRenders) -> HierarchyGaps {
     let mut predictor = Predictor::new(model);
-    let (mut llh_gap, mut maad_gap, mut most_queries, mut argmax_error) = (0.0, 0.0, 0, 0.0);
+    let mut bf16 = Predictor::with_precision(model, Precision::BFloat16);
+    let dense_options = RefineOptions {
+        start_level: 4,
+        max_queries: usize::MAX,
+        ..RefineOptions::default()
+    };
+    let mut gaps = HierarchyGaps::default();
+    let mean = |values: Vec<f64>| values.iter().sum::<f64>() / values.len() as f64;
     for (i, pose) in test.poses.iter().enumerate() {
         let image = test.images.get(i as i64);
         let truth = test.group.expand(pose);
-        let dense =
-            Distribution::dense(&grid, predictor.probabilities(&image, 4).unwrap()).unwrap();
+        let dense = predictor.hierarchical(&image, &dense_options).unwrap();
         let refined = predictor
             .hierarchical(&image, &RefineOptions::default())
             .unwrap();
-        most_queries = most_queries.max(refined.queries);
-        let cells = refined
-            .cells
-            .iter()
-            .map(|&(level, index)| GridCell { level, index })
-            .collect();
-        let refined = Distribution::from_cells(cells, refined.masses).unwrap();
-        llh_gap += (llh(&refined, &truth).unwrap() - llh(&dense, &truth).unwrap()).abs();
-        maad_gap += (maad(&refined, &truth).unwrap() - maad(&dense, &truth).unwrap()).abs();
+        let refined_bf16 = bf16
+            .hierarchical(&image, &RefineOptions::default())
+            .unwrap();
+        gaps.queries = gaps.queries.max(refined.queries);
+        let dense_llh = mean(predictor.log_densities(&image, &truth, &dense).unwrap());
+        let refined_llh = mean(predictor.log_densities(&image, &truth, &refined).unwrap());
+        let bf16_llh = mean(bf16.log_densities(&image, &truth, &refined_bf16).unwrap());
+        gaps.llh += (refined_llh - dense_llh).abs();
+        gaps.llh_bf16 += (bf16_llh - dense_llh).abs();
+        let (dense, refined) = (distribution(dense), distribution(refined));
+        gaps.cell_llh += (llh(&refined, &truth).unwrap() - llh(&dense, &truth).unwrap()).abs();
+        gaps.maad += (maad(&refined, &truth).unwrap() - maad(&dense, &truth).unwrap()).abs();
         let best = predictor.argmax(&image, &ArgmaxOptions::default()).unwrap();
-        argmax_error += nearest_distances(&[best.rotation], &truth)[0].to_degrees();
+        gaps.argmax_error += nearest_distances(&[best.rotation], &truth)[0].to_degrees();
     }
     let n = test.poses.len() as f64;
-    (llh_gap / n, maad_gap / n, most_queries, argmax_error / n)
+    HierarchyGaps {
+        llh: gaps.llh / n,
+        llh_bf16: gaps.llh_bf16 / n,
+        cell_llh: gaps.cell_llh / n,
+        maad: gaps.maad / n,
+        argmax_error: gaps.argmax_error / n,
+        ..gaps
+    }
 }
 
 fn train(train: &common::CubeRenders, label_sets: Vec<Vec<UnitQuaternion<f64>>>) -> ImplicitPdf {
@@ -155,18 +191,18 @@ fn symmetry_sets_are_learned_from_set_labels_and_not_from_single_labels() {
         started.elapsed().as_secs_f64()
     );
     for (name, model) in [("analytic", &analytic_model), ("single", &single_model)] {
-        let (llh_gap, maad_gap, queries, argmax_error) = hierarchy_against_dense(model, &test_set);
-        println!(
-            "{name}: hierarchical − dense level 4: |ΔLLH| {llh_gap:.4}, |ΔMAAD| {maad_gap:.3}°, \
-             ≤ {queries} queries; argmax {argmax_error:.1}° from the nearest symmetric pose"
-        );
-        // Not asserted: these briefly trained models put sub-cell spikes at training labels
-        // (the level-2 training queries never sample them), which level-2 centres can miss.
-        // The hierarchy is checked against dense evaluation on an analytic density in
-        // `tests/model.rs`.
-        assert!(queries * 20 <= 294_912, "{name}: {queries} queries");
-        if name == "analytic" {
-            assert!(argmax_error < 10.0, "{name}: argmax {argmax_error}°");
+        let gaps = hierarchy_against_dense(model, &test_set);
+        println!("{name}: hierarchical − dense level 4: {gaps:?}");
+        assert!(gaps.queries * 20 <= 294_912, "{name}: {gaps:?}");
+        if name == "single" {
+            // A concentrated density: the issue's bounds.
+            assert!(gaps.llh < 0.02 && gaps.maad < 0.2, "{name}: {gaps:?}");
+        } else {
+            // 400 steps leave this model's mass spread over 24 blurred peaks with ridges
+            // narrower than a level-2 cell that no level-2 centre sees (≈ 0.2 nats of the
+            // normaliser are missed); the bound only catches a broken hierarchy.
+            assert!(gaps.llh < 0.5 && gaps.maad < 2.0, "{name}: {gaps:?}");
+            assert!(gaps.argmax_error < 10.0, "{name}: {gaps:?}");
         }
     }
     let uniform_llh = -std::f64::consts::PI.powi(2).ln();

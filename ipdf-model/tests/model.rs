@@ -1,7 +1,7 @@
 //! The model's shapes, gradients, distributions and refinement, through the public API.
 use ipdf_model::{
-    EncoderKind, ImplicitPdf, ModelConfig, Predictor, RefineOptions, TrainOptions, Trainer, refine,
-    set_nll,
+    EncoderKind, ImplicitPdf, ModelConfig, Precision, Predictor, RefineOptions, TrainOptions,
+    Trainer, refine, set_nll,
 };
 use nalgebra::UnitQuaternion;
 use proptest::prelude::*;
@@ -130,7 +130,7 @@ fn dense_distribution_sums_to_one_and_hierarchy_agrees_where_the_mass_is() {
     let options = RefineOptions {
         level: 3,
         keep_mass: 1.0,
-        max_cells: 4_608,
+        max_queries: usize::MAX,
         ..RefineOptions::default()
     };
     let refined = predictor.hierarchical(&image, &options).unwrap();
@@ -139,6 +139,32 @@ fn dense_distribution_sums_to_one_and_hierarchy_agrees_where_the_mass_is() {
         assert_eq!(*level, 3);
         assert!((mass - dense[*index as usize]).abs() < 1e-9 * (1.0 + dense[*index as usize]));
     }
+}
+
+#[test]
+fn bfloat16_head_and_cell_lookups_agree_with_float32() {
+    let model = ImplicitPdf::new(ModelConfig::small(32), Device::Cpu).unwrap();
+    let image = images(1, 32, 9).get(0);
+    let mut exact = Predictor::new(&model);
+    let mut fast = Predictor::with_precision(&model, Precision::BFloat16);
+    let term = exact.image_term(&image).unwrap();
+    let cells: Vec<u64> = (0..4_608).step_by(37).collect();
+    // Cells of a cached level are looked up in the grid's query term; arbitrary rotations go
+    // through the encoding: the same `F`.
+    let looked_up = exact.cell_scores(&term, 2, &cells).unwrap();
+    let grid = Grid::new(2).unwrap();
+    let rotations: Vec<_> = cells.iter().map(|&c| grid.rotation(c).unwrap()).collect();
+    let encoded = exact.rotation_scores(&term, &rotations).unwrap();
+    for (a, b) in looked_up.iter().zip(&encoded) {
+        assert!((a - b).abs() < 1e-5, "{a} {b}");
+    }
+    let approximate = fast.cell_scores(&term, 2, &cells).unwrap();
+    let spread = looked_up.iter().fold(0.0f64, |m, f| m.max(f.abs()));
+    for (a, b) in looked_up.iter().zip(&approximate) {
+        assert!((a - b).abs() < 0.02 * (1.0 + spread), "{a} {b}");
+    }
+    assert_ne!(looked_up, approximate);
+    assert!(exact.cell_scores(&term, 2, &[4_608]).is_err());
 }
 
 /// `F` peaked at `centre` with a width of about `1/√sharpness` radians.
@@ -201,19 +227,21 @@ proptest! {
         yaw in -3.1f64..3.1, pitch in -1.5f64..1.5, roll in -3.1f64..3.1, sharpness in 0.0f64..200.0,
     ) {
         let centre = UnitQuaternion::from_euler_angles(roll, pitch, yaw);
-        let everything = RefineOptions { start_level: 0, level: 1, keep_mass: 1.0, max_cells: 72 };
+        let everything = RefineOptions { start_level: 0, level: 1, keep_mass: 1.0, max_queries: usize::MAX };
         let refined = refine(|l, c| Ok(analytic_scores(l, c, &centre, sharpness)), &everything).unwrap();
         let dense = analytic_scores(1, &(0..576).collect::<Vec<_>>(), &centre, sharpness);
         let peak = dense.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         let total: f64 = dense.iter().map(|s| (s - peak).exp()).sum();
         prop_assert!((refined.masses.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+        let log_z = peak + (total * std::f64::consts::PI.powi(2) / 576.0).ln();
+        prop_assert!((refined.log_normaliser - log_z).abs() < 1e-9);
         for ((_, index), mass) in refined.cells.iter().zip(&refined.masses) {
             prop_assert!((mass - (dense[*index as usize] - peak).exp() / total).abs() < 1e-12);
         }
-        let budget = RefineOptions { start_level: 0, level: 2, keep_mass: 0.9, max_cells: 5 };
+        let budget = RefineOptions { start_level: 0, level: 2, keep_mass: 0.9, max_queries: 72 + 80 };
         let partial = refine(|l, c| Ok(analytic_scores(l, c, &centre, sharpness)), &budget).unwrap();
         prop_assert!((partial.masses.iter().sum::<f64>() - 1.0).abs() < 1e-9);
-        prop_assert!(partial.queries <= 72 + 2 * 40);
+        prop_assert!(partial.queries <= 72 + 80);
     }
 
     #[test]
