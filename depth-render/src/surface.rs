@@ -64,16 +64,17 @@ impl Scene {
             .enumerate()
         {
             let Some(k) = instance else { continue };
-            let placed = instances
-                .get(usize::from(k))
-                .ok_or(RenderError::RenderingMismatch {
-                    reason: format!("pixel {i} shows instance {k} of {}", instances.len()),
-                })?;
+            let placed =
+                instances
+                    .get(usize::from(k))
+                    .ok_or_else(|| RenderError::RenderingMismatch {
+                        reason: format!("pixel {i} shows instance {k} of {}", instances.len()),
+                    })?;
             let mesh = self
                 .meshes()
                 .get(placed.mesh)
                 .filter(|mesh| (triangle as usize) < mesh.triangles().len())
-                .ok_or(RenderError::RenderingMismatch {
+                .ok_or_else(|| RenderError::RenderingMismatch {
                     reason: format!(
                         "pixel {i} shows triangle {triangle} of mesh {}",
                         placed.mesh

@@ -37,3 +37,12 @@ pub fn write_atomically(
     }
     result.with_context(|| format!("writing {}", path.display()))
 }
+
+/// Writes `value` as pretty-printed JSON (with a final newline) atomically.
+pub fn write_json(path: &Path, value: &serde_json::Value) -> Result<()> {
+    write_atomically(path, |out| {
+        serde_json::to_writer_pretty(&mut *out, value)?;
+        out.write_all(b"\n")?;
+        Ok(())
+    })
+}

@@ -2,6 +2,8 @@
 //! dataset-level `camera.json` keys `fx fy cx cy width height`), `depth_scale` (mm per depth
 //! unit) and model→camera poses (`cam_R_m2c` row-major 3×3, `cam_t_m2c` in mm). Poses are
 //! returned in metres.
+use std::collections::BTreeMap;
+use std::io::Write;
 use std::path::Path;
 
 use depth_render::PinholeCamera;
@@ -9,6 +11,7 @@ use nalgebra::{Isometry3, Translation3};
 use serde_json::Value;
 
 use crate::FileError;
+use crate::atomic::write_atomically;
 
 /// Reads and parses a JSON file.
 pub fn read_json(path: &Path) -> Result<Value, FileError> {
@@ -27,19 +30,50 @@ pub struct BopCamera {
     pub depth_scale: f64,
 }
 
-/// Parses a camera from `value` (an object of `path`; `prefix` names where it sits in the file,
-/// e.g. `"12."` for an entry of `scene_camera.json`). `size` supplies width and height when
-/// the object has none (BOP's per-image entries).
-pub fn camera_from_json(
+/// Intrinsics without an image size, as BOP's per-image `scene_camera.json` entries give them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Intrinsics {
+    /// Focal lengths and principal point (pixels).
+    pub fx: f64,
+    /// See `fx`.
+    pub fy: f64,
+    /// See `fx`.
+    pub cx: f64,
+    /// See `fx`.
+    pub cy: f64,
+    /// Millimetres per unit of the depth PNGs (1.0 when absent).
+    pub depth_scale: f64,
+}
+
+impl Intrinsics {
+    /// The camera of an image of `width × height` pixels.
+    pub fn camera(&self, width: u32, height: u32) -> Result<BopCamera, depth_render::RenderError> {
+        Ok(BopCamera {
+            camera: PinholeCamera::new(self.fx, self.fy, self.cx, self.cy, width, height)?,
+            depth_scale: self.depth_scale,
+        })
+    }
+
+    /// The BOP JSON of these intrinsics (`cam_K`, `depth_scale`).
+    pub fn to_json(&self) -> Value {
+        serde_json::json!({
+            "cam_K": [self.fx, 0.0, self.cx, 0.0, self.fy, self.cy, 0.0, 0.0, 1.0],
+            "depth_scale": self.depth_scale,
+        })
+    }
+}
+
+/// Parses intrinsics from `value` (an object of `path`; `prefix` names where it sits in the
+/// file, e.g. `"12."` for an entry of `scene_camera.json`): `cam_K` or BOP's dataset-level
+/// `fx fy cx cy`, and `depth_scale`.
+pub fn intrinsics_from_json(
     value: &Value,
     path: &Path,
     prefix: &str,
-    size: Option<(u32, u32)>,
-) -> Result<BopCamera, FileError> {
-    let field = |key: &str| format!("{prefix}{key}");
+) -> Result<Intrinsics, FileError> {
     let (fx, fy, cx, cy) = match value.get("cam_K") {
         Some(k) => {
-            let k: [f64; 9] = numbers(k, path, &field("cam_K"))?;
+            let k: [f64; 9] = numbers(k, path, &format!("{prefix}cam_K"))?;
             (k[0], k[4], k[2], k[5])
         }
         None => (
@@ -49,12 +83,41 @@ pub fn camera_from_json(
             number(value, "cy", path, prefix)?,
         ),
     };
+    let depth_scale = match value.get("depth_scale") {
+        None => 1.0,
+        Some(_) => number(value, "depth_scale", path, prefix)?,
+    };
+    if depth_scale <= 0.0 {
+        return Err(FileError::new(
+            path,
+            format!("{prefix}depth_scale"),
+            format!("{depth_scale} is not positive"),
+        ));
+    }
+    Ok(Intrinsics {
+        fx,
+        fy,
+        cx,
+        cy,
+        depth_scale,
+    })
+}
+
+/// Parses a camera from `value` (see [`intrinsics_from_json`]). `size` supplies width and
+/// height when the object has none (BOP's per-image entries).
+pub fn camera_from_json(
+    value: &Value,
+    path: &Path,
+    prefix: &str,
+    size: Option<(u32, u32)>,
+) -> Result<BopCamera, FileError> {
+    let intrinsics = intrinsics_from_json(value, path, prefix)?;
     let dimension = |key: &str| -> Result<u32, FileError> {
         let v = number(value, key, path, prefix)?;
         if v.fract() != 0.0 || !(1.0..=65_535.0).contains(&v) {
             return Err(FileError::new(
                 path,
-                field(key),
+                format!("{prefix}{key}"),
                 format!("{v} is not an image size"),
             ));
         }
@@ -64,23 +127,9 @@ pub fn camera_from_json(
         (None, None, Some(size)) => size,
         _ => (dimension("width")?, dimension("height")?),
     };
-    let camera = PinholeCamera::new(fx, fy, cx, cy, width, height)
-        .map_err(|e| FileError::new(path, field("cam_K"), e.to_string()))?;
-    let depth_scale = match value.get("depth_scale") {
-        None => 1.0,
-        Some(_) => number(value, "depth_scale", path, prefix)?,
-    };
-    if depth_scale <= 0.0 {
-        return Err(FileError::new(
-            path,
-            field("depth_scale"),
-            format!("{depth_scale} is not positive"),
-        ));
-    }
-    Ok(BopCamera {
-        camera,
-        depth_scale,
-    })
+    intrinsics
+        .camera(width, height)
+        .map_err(|e| FileError::new(path, format!("{prefix}cam_K"), e.to_string()))
 }
 
 /// Parses a model→camera pose (metres) from `cam_R_m2c` and `cam_t_m2c` (mm) of `value`.
@@ -106,7 +155,56 @@ pub fn pose_to_json(pose: &Isometry3<f64>) -> Value {
     serde_json::json!({"cam_R_m2c": r, "cam_t_m2c": [t.x, t.y, t.z]})
 }
 
-fn number(value: &Value, key: &str, path: &Path, prefix: &str) -> Result<f64, FileError> {
+/// Writes a BOP per-image file (`scene_gt.json`, `scene_camera.json`, …) atomically: one line
+/// per image id, in numeric order, as the BOP toolkit does.
+pub fn write_json_by_id(path: &Path, entries: &BTreeMap<u32, Value>) -> Result<(), FileError> {
+    write_atomically(path, |out| {
+        out.write_all(b"{")?;
+        for (i, (id, value)) in entries.iter().enumerate() {
+            let separator = if i == 0 { "\n" } else { ",\n" };
+            write!(out, "{separator}  \"{id}\": {value}")?;
+        }
+        out.write_all(b"\n}\n")?;
+        Ok(())
+    })
+    .map_err(|e| FileError::new(path, "file", format!("{e:#}")))
+}
+
+/// The entries of a JSON object keyed by non-negative integer ids (image or object ids), in
+/// numeric order; a key that is not an id is an error naming it.
+pub fn entries_by_id<'a>(
+    value: &'a Value,
+    path: &Path,
+) -> Result<BTreeMap<u32, &'a Value>, FileError> {
+    let object = value
+        .as_object()
+        .ok_or_else(|| FileError::new(path, "file", "expected a JSON object keyed by id"))?;
+    object
+        .iter()
+        .map(|(key, entry)| {
+            let id = key
+                .parse::<u32>()
+                .map_err(|_| FileError::new(path, key.as_str(), "key is not an integer id"))?;
+            Ok((id, entry))
+        })
+        .collect()
+}
+
+/// The non-negative integer under `key` of `value`.
+pub fn id_at(value: &Value, key: &str, path: &Path, prefix: &str) -> Result<u32, FileError> {
+    let v = number(value, key, path, prefix)?;
+    if v.fract() != 0.0 || !(0.0..=f64::from(u32::MAX)).contains(&v) {
+        return Err(FileError::new(
+            path,
+            format!("{prefix}{key}"),
+            format!("{v} is not an integer id"),
+        ));
+    }
+    Ok(v as u32)
+}
+
+/// The finite number under `key` of `value`.
+pub fn number(value: &Value, key: &str, path: &Path, prefix: &str) -> Result<f64, FileError> {
     let field = format!("{prefix}{key}");
     let v = value
         .get(key)
@@ -117,7 +215,7 @@ fn number(value: &Value, key: &str, path: &Path, prefix: &str) -> Result<f64, Fi
 }
 
 /// The list of `N` finite numbers under `key` of `value`.
-fn numbers_at<const N: usize>(
+pub fn numbers_at<const N: usize>(
     value: &Value,
     key: &str,
     path: &Path,

@@ -1,8 +1,9 @@
-//! PNG images as BOP stores them: depth as uint16 in units of `depth_scale` mm, masks as 8-bit
-//! (255 on the object), colour as 8-bit RGB. Writes are atomic.
+//! Images as BOP stores them: depth as uint16 PNG in units of `depth_scale` mm, masks as 8-bit
+//! PNG (255 on the object), colour as 8-bit RGB (PNG or JPEG). Writes are atomic (PNG only);
+//! reads accept what the real BOP datasets ship.
 use std::path::Path;
 
-use image::{ExtendedColorType, ImageEncoder, codecs::png::PngEncoder};
+use image::{DynamicImage, ExtendedColorType, ImageEncoder, codecs::png::PngEncoder};
 
 use crate::FileError;
 use crate::atomic::write_atomically;
@@ -62,4 +63,120 @@ fn write_png(
             .map_err(anyhow::Error::from)
     })
     .map_err(|e| FileError::new(path, "file", format!("{e:#}")))
+}
+
+/// The bounding box `[u0, v0, u1, v1]` (exclusive ends) of the true pixels of a row-major
+/// mask of `width` columns, or `None` when none is true.
+pub fn mask_box(mask: &[bool], width: usize) -> Option<[u32; 4]> {
+    let width = width.max(1);
+    let (mut low, mut high) = ([u32::MAX; 2], [0u32; 2]);
+    for (i, _) in mask.iter().enumerate().filter(|&(_, &m)| m) {
+        let p = [(i % width) as u32, (i / width) as u32];
+        for axis in 0..2 {
+            low[axis] = low[axis].min(p[axis]);
+            high[axis] = high[axis].max(p[axis]);
+        }
+    }
+    (low[0] <= high[0]).then(|| [low[0], low[1], high[0] + 1, high[1] + 1])
+}
+
+/// A decoded image of any BOP kind: its size and row-major pixels.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Image<T> {
+    /// Columns.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
+    /// Row-major pixels.
+    pub pixels: Vec<T>,
+}
+
+fn decode(path: &Path) -> Result<DynamicImage, FileError> {
+    image::ImageReader::open(path)
+        .map_err(|e| FileError::new(path, "file", e.to_string()))?
+        .with_guessed_format()
+        .map_err(|e| FileError::new(path, "file", e.to_string()))?
+        .decode()
+        .map_err(|e| FileError::new(path, "file", format!("not a readable image: {e}")))
+}
+
+/// Reads a BOP depth image (16-bit grey PNG) as z-depth in metres: `value · depth_scale / 1000`,
+/// 0 where the sensor had no reading.
+pub fn read_depth(path: &Path, depth_scale: f64) -> Result<Image<f32>, FileError> {
+    let DynamicImage::ImageLuma16(grey) = decode(path)? else {
+        return Err(FileError::new(
+            path,
+            "pixel format",
+            "expected a 16-bit greyscale depth image",
+        ));
+    };
+    let metres_per_unit = depth_scale * 1e-3;
+    Ok(Image {
+        width: grey.width(),
+        height: grey.height(),
+        pixels: grey
+            .pixels()
+            .map(|p| (f64::from(p.0[0]) * metres_per_unit) as f32)
+            .collect(),
+    })
+}
+
+/// Reads a mask image: true where the pixel is not black (any bit depth or channel count).
+pub fn read_mask(path: &Path) -> Result<Image<bool>, FileError> {
+    let grey = decode(path)?.into_luma16();
+    Ok(Image {
+        width: grey.width(),
+        height: grey.height(),
+        pixels: grey.pixels().map(|p| p.0[0] > 0).collect(),
+    })
+}
+
+/// Reads a colour image (PNG or JPEG, any bit depth) as 8-bit RGB.
+pub fn read_rgb(path: &Path) -> Result<Image<[u8; 3]>, FileError> {
+    let rgb = decode(path)?.into_rgb8();
+    Ok(Image {
+        width: rgb.width(),
+        height: rgb.height(),
+        pixels: rgb.pixels().map(|p| p.0).collect(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn depth_masks_and_colour_round_trip() {
+        let dir = tempfile::tempdir().unwrap();
+        let depth = [0.0f32, 0.5, 1.25, 6.5535];
+        let path = dir.path().join("d.png");
+        write_depth(&path, &depth, 2, 2, 0.1).unwrap();
+        let back = read_depth(&path, 0.1).unwrap();
+        assert_eq!((back.width, back.height), (2, 2));
+        for (a, b) in depth.iter().zip(&back.pixels) {
+            assert!((a - b).abs() < 1e-4, "{a} {b}");
+        }
+        let mask = [true, false, false, true];
+        write_mask(&dir.path().join("m.png"), &mask, 2, 2).unwrap();
+        assert_eq!(read_mask(&dir.path().join("m.png")).unwrap().pixels, mask);
+        let rgb = [[1, 2, 3], [250, 0, 7], [0, 0, 0], [9, 9, 9]];
+        write_rgb(&dir.path().join("c.png"), &rgb, 2, 2).unwrap();
+        assert_eq!(read_rgb(&dir.path().join("c.png")).unwrap().pixels, rgb);
+    }
+
+    #[test]
+    fn unreadable_and_wrong_kind_images_name_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let text = dir.path().join("x.png");
+        std::fs::write(&text, "not an image").unwrap();
+        assert_eq!(read_mask(&text).unwrap_err().field, "file");
+        let rgb = dir.path().join("c.png");
+        write_rgb(&rgb, &[[1, 2, 3]], 1, 1).unwrap();
+        let error = read_depth(&rgb, 1.0).unwrap_err();
+        assert_eq!(
+            (error.path.as_path(), error.field.as_str()),
+            (rgb.as_path(), "pixel format")
+        );
+        assert!(read_rgb(&dir.path().join("missing.png")).is_err());
+    }
 }

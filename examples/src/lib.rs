@@ -1,11 +1,19 @@
-//! The pieces of the `ipdf` command line that other programs can reuse: BOP JSON conventions,
-//! PNG and `.npy` output, atomic file writes. The commands themselves live in `src/commands/`.
+//! The pieces of the `ipdf` command line that other programs can reuse: BOP datasets
+//! ([`dataset`], [`bop`], [`images`]), synthetic RGB-D data ([`synth`]), pseudo ground-truth
+//! labelling ([`label`]), `.npy` output and atomic file writes. The commands themselves live
+//! in `src/commands/`.
 
 pub mod atomic;
 pub mod bop;
+pub mod dataset;
+mod error;
 mod file_error;
+pub mod images;
+pub mod label;
 pub mod npy;
-pub mod png;
+pub mod progress;
+pub mod synth;
 pub mod trials;
 
+pub use error::PipelineError;
 pub use file_error::FileError;

@@ -33,6 +33,11 @@ enum Command {
     Render(commands::render::RenderArgs),
     /// Align a source point cloud to a target (FPFH + Fast Global Registration + ICP).
     Register(commands::register::RegisterArgs),
+    /// Render a synthetic RGB-D dataset (BOP format) of objects resting on a table.
+    Synth(commands::synth::SynthArgs),
+    /// Pseudo ground-truth pose sets for every object instance of a BOP dataset, from depth,
+    /// masks and meshes (FPFH + FGR + ICP, render-and-compare); GT poses are never read.
+    Label(commands::label::LabelArgs),
 }
 
 fn run(cli: &Cli) -> Result<serde_json::Value> {
@@ -40,11 +45,23 @@ fn run(cli: &Cli) -> Result<serde_json::Value> {
         Command::Grid(args) => commands::grid::run(args),
         Command::Render(args) => commands::render::run(args, cli.seed),
         Command::Register(args) => commands::register::run(args, cli.seed),
+        Command::Synth(args) => commands::synth::run(args, cli.seed),
+        Command::Label(args) => commands::label::run(args, cli.seed),
     }
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(error) if !error.use_stderr() => error.exit(), // --help, --version
+        Err(error) => {
+            // clap's first line names the bad flag; the usage that follows is in --help.
+            let text = error.render().to_string();
+            let cause = text.lines().next().unwrap_or("error: bad arguments");
+            eprintln!("{cause} (see ipdf --help)");
+            return ExitCode::from(2);
+        }
+    };
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(cli.threads)
         .build();

@@ -77,6 +77,69 @@ impl SymmetryGroup {
             .collect()
     }
 
+    /// The symmetry classes: the identity and each discrete symmetry not already on the orbit
+    /// of an earlier one under the continuous axes (a half-turn about a can's own axis is no
+    /// class of its own), as rotations.
+    pub fn classes(&self) -> Vec<UnitQuaternion<f64>> {
+        let mut classes = vec![UnitQuaternion::identity()];
+        for symmetry in &self.discrete {
+            let candidate = symmetry.rotation;
+            if classes
+                .iter()
+                .all(|base| self.orbit_distance(base, &candidate) > SAME_ROTATION)
+            {
+                classes.push(candidate);
+            }
+        }
+        classes
+    }
+
+    /// The geodesic distance (radians) from `rotation` to the orbit of `base` under the
+    /// continuous axes, `{R(axis, θ) · base}`: exact for one axis (in closed form: for
+    /// `q = rotation · base⁻¹ = (w, v)`, `2·acos √(w² + (v·axis)²)`), over
+    /// [`CONTINUOUS_STEPS`] angles for several, `angle(base⁻¹ · rotation)` for none.
+    pub fn orbit_distance(
+        &self,
+        base: &UnitQuaternion<f64>,
+        rotation: &UnitQuaternion<f64>,
+    ) -> f64 {
+        let q = rotation * base.inverse();
+        match self.continuous.as_slice() {
+            [] => geodesic_distance(base, rotation),
+            [axis] => {
+                let (w, v) = (q.w, q.imag());
+                let along = v.dot(&axis.axis);
+                2.0 * (w * w + along * along).sqrt().min(1.0).acos()
+            }
+            _ => {
+                let turns = Self {
+                    discrete: Vec::new(),
+                    continuous: self.continuous.clone(),
+                };
+                turns
+                    .rotations(CONTINUOUS_STEPS)
+                    .iter()
+                    .map(|turn| geodesic_distance(&(turn * base), rotation))
+                    .fold(f64::INFINITY, f64::min)
+            }
+        }
+    }
+
+    /// For each of [`SymmetryGroup::classes`], the geodesic distance (radians) from `rotation`
+    /// to that class's members in the symmetry set of `truth` (`truth · R(axis, θ) · base`).
+    /// Their minimum is the distance to the nearest pose indistinguishable from `truth`.
+    pub fn class_distances(
+        &self,
+        truth: &UnitQuaternion<f64>,
+        rotation: &UnitQuaternion<f64>,
+    ) -> Vec<f64> {
+        let relative = truth.inverse() * rotation;
+        self.classes()
+            .iter()
+            .map(|base| self.orbit_distance(base, &relative))
+            .collect()
+    }
+
     /// Reads the symmetry fields of one object's entry of BOP `models_info.json`; absent fields
     /// mean no symmetry of that kind. Errors name the field, e.g. `symmetries_discrete[1]`.
     pub fn from_bop_json(model_info: &Value) -> Result<Self, MetricsError> {

@@ -1,5 +1,7 @@
 //! Iterative Closest Point: point-to-point (closed form) and point-to-plane (Gauss–Newton).
 
+use std::num::NonZeroUsize;
+
 use nalgebra::{Isometry3, Point3, Vector3};
 use rayon::prelude::*;
 
@@ -73,10 +75,15 @@ pub struct IcpOptions {
     pub relative_rmse: f64,
     /// Optional robust kernel.
     pub kernel: Option<RobustKernel>,
+    /// Pair each source point with the nearest of its 8 nearest target points whose normal is
+    /// within this many radians of its own (turned by the pose); needs normals on both clouds.
+    /// Keeps the two sides of a thin wall (a bowl) from being matched to each other.
+    pub max_normal_angle: Option<f32>,
 }
 
 impl Default for IcpOptions {
-    /// Point-to-plane, 7.5 mm (1.5 voxels of 5 mm), 30 iterations, 1e-6 / 1e-6, no kernel.
+    /// Point-to-plane, 7.5 mm (1.5 voxels of 5 mm), 30 iterations, 1e-6 / 1e-6, no kernel, no
+    /// normal test.
     fn default() -> Self {
         Self {
             method: IcpMethod::PointToPlane,
@@ -85,6 +92,7 @@ impl Default for IcpOptions {
             relative_fitness: 1e-6,
             relative_rmse: 1e-6,
             kernel: None,
+            max_normal_angle: None,
         }
     }
 }
@@ -138,6 +146,28 @@ pub fn refine_icp(
             reason: "scale must be positive",
         });
     }
+    let normal_test = match options.max_normal_angle {
+        None => None,
+        Some(angle) => {
+            if !(angle.is_finite() && angle >= 0.0) {
+                return Err(RegistrationError::InvalidOption {
+                    name: "max_normal_angle",
+                    value: f64::from(angle),
+                    reason: "must be a non-negative angle",
+                });
+            }
+            let missing = || RegistrationError::MissingNormals {
+                stage: "ICP normal compatibility",
+            };
+            let source_normals = source.normals().ok_or_else(missing)?;
+            let target_normals = target.normals().ok_or_else(missing)?;
+            Some(NormalTest {
+                source: source_normals,
+                target: target_normals,
+                min_cosine: angle.cos(),
+            })
+        }
+    };
     let target_normals = match options.method {
         IcpMethod::PointToPlane => {
             Some(target.normals().ok_or(RegistrationError::MissingNormals {
@@ -152,6 +182,7 @@ pub fn refine_icp(
         target_index,
         &pose,
         options.max_correspondence_distance,
+        normal_test.as_ref(),
     );
     let mut score = Score::of(&matches, source.len());
     if score.count == 0 {
@@ -210,6 +241,7 @@ pub fn refine_icp(
             target_index,
             &pose,
             options.max_correspondence_distance,
+            normal_test.as_ref(),
         );
         let previous = score;
         score = Score::of(&matches, source.len());
@@ -239,25 +271,58 @@ pub fn overlap(
         return 0.0;
     }
     Score::of(
-        &correspondences(source, target_index, pose, max_distance),
+        &correspondences(source, target_index, pose, max_distance, None),
         source.len(),
     )
     .fitness
 }
 
-/// For each source point (moved by `pose`), its nearest target point if within `max_distance`.
+/// The normals of both clouds and the smallest cosine between paired normals.
+struct NormalTest<'a> {
+    source: &'a [Vector3<f32>],
+    target: &'a [Vector3<f32>],
+    min_cosine: f32,
+}
+
+/// Target candidates searched per source point under a normal test.
+const NORMAL_CANDIDATES: usize = 8;
+
+/// For each source point (moved by `pose`), its nearest target point within `max_distance`;
+/// with a normal test, the nearest of the 8 nearest whose normal agrees.
 fn correspondences(
     source: &[Point3<f32>],
     target_index: &PointIndex,
     pose: &Isometry3<f64>,
     max_distance: f32,
+    normals: Option<&NormalTest>,
 ) -> Vec<Option<Neighbour>> {
     let pose = pose.cast::<f32>();
+    let Some(test) = normals else {
+        return source
+            .par_iter()
+            .map(|p| {
+                let moved = pose * p;
+                target_index.nearest_within_radius(&[moved.x, moved.y, moved.z], max_distance)
+            })
+            .collect();
+    };
+    let candidates = NonZeroUsize::new(NORMAL_CANDIDATES).expect("not zero");
     source
         .par_iter()
-        .map(|p| {
+        .zip(test.source)
+        .map_init(Vec::new, |found, (p, normal)| {
             let moved = pose * p;
-            target_index.nearest_within_radius(&[moved.x, moved.y, moved.z], max_distance)
+            let query = [moved.x, moved.y, moved.z];
+            let turned = pose.rotation * normal;
+            let agrees =
+                |n: &Neighbour| turned.dot(&test.target[n.index as usize]) >= test.min_cosine;
+            // The nearest usually agrees; only otherwise are the next ones searched.
+            let nearest = target_index.nearest_within_radius(&query, max_distance)?;
+            if agrees(&nearest) {
+                return Some(nearest);
+            }
+            target_index.nearest_within(&query, max_distance, candidates, found);
+            found.iter().find(|n| agrees(n)).copied()
         })
         .collect()
 }
@@ -351,6 +416,54 @@ mod tests {
                 "{method:?}: {found:?}"
             );
         }
+    }
+
+    #[test]
+    fn the_normal_test_keeps_the_two_sides_of_a_thin_wall_apart() {
+        // Two parallel sheets 3 mm apart, facing away from each other; the source is the upper
+        // sheet's points (normals up), started 2 mm below it: without the test the source
+        // snaps onto the lower sheet (normals down), which is nearer.
+        let sheet = |z: f32, up: f32| {
+            let points: Vec<Point3<f32>> = (0..400)
+                .map(|i| Point3::new((i % 20) as f32 * 0.003, (i / 20) as f32 * 0.003, z))
+                .collect();
+            let normals = vec![Vector3::new(0.0, 0.0, up); points.len()];
+            (points, normals)
+        };
+        let (upper, upper_normals) = sheet(0.003, 1.0);
+        let (lower, lower_normals) = sheet(0.0, -1.0);
+        let target = PointCloud::new([upper.clone(), lower].concat())
+            .unwrap()
+            .with_normals([upper_normals.clone(), lower_normals].concat())
+            .unwrap();
+        let index = PointIndex::from_points(target.points());
+        let source = PointCloud::new(upper)
+            .unwrap()
+            .with_normals(upper_normals)
+            .unwrap();
+        let start = Isometry3::translation(0.0015, 0.0015, -0.0025);
+        let height = |max_normal_angle| {
+            // Point-to-point: a flat sheet leaves point-to-plane's system singular.
+            let options = IcpOptions {
+                method: IcpMethod::PointToPoint,
+                max_correspondence_distance: 0.004,
+                max_normal_angle,
+                ..IcpOptions::default()
+            };
+            let found = refine_icp(&source, &target, &index, &start, &options).unwrap();
+            found.pose.translation.vector.z
+        };
+        assert!((height(None) + 0.003).abs() < 1e-4, "{}", height(None));
+        assert!(height(Some(1.0)).abs() < 1e-4, "{}", height(Some(1.0)));
+        let no_normals = PointCloud::new(vec![Point3::origin(); 3]).unwrap();
+        let options = IcpOptions {
+            max_normal_angle: Some(1.0),
+            ..IcpOptions::default()
+        };
+        assert!(matches!(
+            refine_icp(&no_normals, &target, &index, &start, &options),
+            Err(RegistrationError::MissingNormals { .. })
+        ));
     }
 
     #[test]

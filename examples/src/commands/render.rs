@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use depth_render::{DepthNoise, Instance, Lighting, Material, Scene, Window, load_mesh};
-use examples::{bop, png};
+use examples::{bop, images};
 use serde_json::json;
 
 /// Surface colouring of `--rgb`.
@@ -81,7 +81,7 @@ pub fn run(args: &RenderArgs, seed: u64) -> Result<serde_json::Value> {
     } else {
         &rendering.depth
     };
-    png::write_depth(&args.out, depth, width, height, args.depth_scale)?;
+    images::write_depth(&args.out, depth, width, height, args.depth_scale)?;
     if let Some(path) = &args.rgb {
         let rgb = scene
             .shade(
@@ -92,30 +92,24 @@ pub fn run(args: &RenderArgs, seed: u64) -> Result<serde_json::Value> {
                 &rendering,
             )
             .context("shading")?;
-        png::write_rgb(path, &rgb, width, height)?;
+        images::write_rgb(path, &rgb, width, height)?;
     }
     let mask: Vec<bool> = rendering.instance.iter().map(Option::is_some).collect();
     if let Some(path) = &args.mask {
-        png::write_mask(path, &mask, width, height)?;
+        images::write_mask(path, &mask, width, height)?;
     }
-    let hits: Vec<(u32, u32, f32)> = mask
+    let bbox = images::mask_box(&mask, width as usize);
+    let depths = rendering
+        .depth
         .iter()
-        .enumerate()
+        .zip(&mask)
         .filter(|(_, m)| **m)
-        .map(|(i, _)| (i as u32 % width, i as u32 / width, rendering.depth[i]))
-        .collect();
-    let bbox = (!hits.is_empty()).then(|| {
-        let u0 = hits.iter().map(|h| h.0).min().unwrap_or(0);
-        let v0 = hits.iter().map(|h| h.1).min().unwrap_or(0);
-        let u1 = hits.iter().map(|h| h.0 + 1).max().unwrap_or(0);
-        let v1 = hits.iter().map(|h| h.1 + 1).max().unwrap_or(0);
-        [u0, v0, u1, v1]
-    });
-    let depths = hits.iter().map(|h| f64::from(h.2));
+        .map(|(d, _)| f64::from(*d));
+    let pixels = mask.iter().filter(|m| **m).count();
     Ok(json!({
         "width": width,
         "height": height,
-        "pixels": hits.len(),
+        "pixels": pixels,
         "bbox": bbox,
         "depth_min_m": depths.clone().reduce(f64::min),
         "depth_max_m": depths.reduce(f64::max),

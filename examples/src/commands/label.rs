@@ -1,0 +1,132 @@
+//! `ipdf label`: pseudo ground-truth pose sets for every instance of a BOP split (see
+//! `examples::label`), and optionally their scores against the ground truth.
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use examples::atomic::{write_atomically, write_json};
+use examples::dataset::BopDataset;
+use examples::label::{DatasetOptions, LabelOptions, Shard, Strategy, label_dataset, report};
+use examples::progress::bar;
+use examples::synth::{DatasetInfo, read_dataset_info};
+use serde_json::json;
+use std::io::Write;
+
+/// Arguments of `ipdf label`.
+#[derive(Debug, clap::Args)]
+pub struct LabelArgs {
+    /// BOP dataset folder.
+    #[arg(long)]
+    pub dataset: PathBuf,
+    /// Split folder to label.
+    #[arg(long, default_value = "train")]
+    pub split: String,
+    /// Folder of the meshes and models_info.json, inside the dataset (T-LESS: models_cad).
+    #[arg(long, default_value = "models")]
+    pub models_dir: String,
+    /// Metres per mesh unit (BOP meshes are in millimetres).
+    #[arg(long, default_value_t = 0.001)]
+    pub mesh_scale: f64,
+    /// The object of every mask, for a dataset without scene_gt.json.
+    #[arg(long)]
+    pub obj_id: Option<u32>,
+    /// K: labels per instance at most.
+    #[arg(long, default_value_t = 8)]
+    pub labels: usize,
+    /// M: global-alignment trials per label.
+    #[arg(long, default_value_t = 3)]
+    pub trials: usize,
+    /// How labels after the first are found: `reseed` (ICP from the best pose composed with
+    /// the model's self-symmetries) or `trials` (independent trials, as in the paper).
+    #[arg(long, value_enum, default_value = "reseed")]
+    pub strategy: Strategy,
+    /// Voxel size as a fraction of the object's diameter.
+    #[arg(long, default_value_t = 0.025)]
+    pub voxel_fraction: f64,
+    /// Drop labels whose render-and-compare score exceeds this fraction of the diameter…
+    #[arg(long, default_value_t = 0.015)]
+    pub max_score: f64,
+    /// …and this many metres (the sensor noise's own score).
+    #[arg(long, default_value_t = 0.003)]
+    pub score_floor: f64,
+    /// Merge labels closer than this many degrees.
+    #[arg(long, default_value_t = 2.0)]
+    pub merge_angle: f64,
+    /// Label only scenes k with k mod n = i (sorted order), for job arrays: `i/n`, 0 ≤ i < n.
+    #[arg(long, default_value = "0/1")]
+    pub shard: String,
+    /// Score the labels against scene_gt.json: JSON here, a markdown table beside it (.md).
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+}
+
+/// Runs `ipdf label`; returns the run's counts and, with `--report`, the scores.
+pub fn run(args: &LabelArgs, seed: u64) -> Result<serde_json::Value> {
+    let dataset = BopDataset::open(&args.dataset, &args.models_dir)?;
+    let dataset_options = DatasetOptions {
+        split: args.split.clone(),
+        mesh_scale: args.mesh_scale,
+        obj_id: args.obj_id,
+        shard: Shard::parse(&args.shard)?,
+    };
+    let options = LabelOptions {
+        labels: args.labels,
+        trials: args.trials,
+        strategy: args.strategy,
+        voxel_fraction: args.voxel_fraction,
+        max_score: args.max_score,
+        score_floor: args.score_floor,
+        merge_angle_deg: args.merge_angle,
+        seed,
+        ..LabelOptions::default()
+    };
+    let images = count_images(&dataset, &args.split)?;
+    let progress = bar(images, "images");
+    let summary = label_dataset(&dataset, &dataset_options, &options, &progress)?;
+    progress.finish_and_clear();
+    let mut result = json!({
+        "scenes": summary.scenes,
+        "scenes_skipped": summary.scenes_skipped,
+        "images": summary.images,
+        "instances": summary.instances,
+        "labelled": summary.labelled,
+        "failed": summary.failures.values().sum::<usize>(),
+        "failures": summary.failures,
+        "warnings": summary.warnings,
+        "labels": summary.labels,
+        "seconds": summary.seconds,
+        "images_per_s": summary.images as f64 / summary.seconds.max(1e-9),
+        "instances_per_s": summary.instances as f64 / summary.seconds.max(1e-9),
+    });
+    if let Some(path) = &args.report {
+        let info = read_dataset_info(&dataset)?.unwrap_or_else(|| DatasetInfo {
+            variant: args
+                .dataset
+                .file_name()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .into(),
+            ..DatasetInfo::default()
+        });
+        let scores = report(&dataset, &args.split, &info.names, &info.variant)?;
+        write_json(path, &scores.to_json())?;
+        let markdown = path.with_extension("md");
+        write_atomically(&markdown, |out| {
+            Ok(out.write_all(scores.to_markdown().as_bytes())?)
+        })
+        .with_context(|| format!("writing {}", markdown.display()))?;
+        result["report"] = scores.to_json();
+    }
+    Ok(result)
+}
+
+/// Images in the split (for the progress bar): entries of every scene's scene_camera.json.
+fn count_images(dataset: &BopDataset, split: &str) -> Result<u64> {
+    let mut count = 0;
+    for scene_id in dataset.scene_ids(split)? {
+        let path = dataset.scene(split, scene_id).camera_path();
+        if path.exists() {
+            count += examples::dataset::read_scene_camera(&path)?.len() as u64;
+        }
+    }
+    Ok(count)
+}
