@@ -12,6 +12,32 @@
 //! each instance's `obj_id` (or `obj_id` given for datasets without it). An instance that cannot
 //! be labelled gets an `"error"` and the run goes on; [`report`] scores labels against the
 //! ground truth where there is one.
+//!
+//! ```
+//! use depth_render::Material;
+//! use examples::label::{LabelOptions, ObjectModel, Observation, label_instance};
+//! use examples::synth::{FrameRenderer, FrameStyle, ObjectKind, SynthObject, SynthOptions, ViewRange};
+//! use rand::SeedableRng;
+//!
+//! // One rendered frame of the cracker box (in a dataset: its depth and mask_visib PNGs).
+//! let object = SynthObject::built_in(ObjectKind::Box)?;
+//! let camera = SynthOptions::t_less_camera().camera;
+//! let style = FrameStyle { material: Material::Uniform(object.colour), distractors: 0, noise: None };
+//! let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+//! let frame = FrameRenderer::new(&object.mesh)?.render(&camera, &ViewRange::default(), &style, &mut rng)?;
+//!
+//! let options = LabelOptions::default();
+//! let model = ObjectModel::new(1, &object.mesh, &options)?; // once per object
+//! let observation = Observation::new(camera, &frame.depth, &frame.mask_visib).expect("visible");
+//! let labels = label_instance(&model, &observation, &options, 7).labels.expect("labelled");
+//! // A box with three different edges looks the same in 4 orientations: one label for each.
+//! assert_eq!(labels.len(), 4);
+//! for label in &labels {
+//!     let error = object.symmetry.class_distances(&frame.pose.rotation, &label.pose.rotation);
+//!     assert!(error.iter().fold(f64::INFINITY, |a, &b| a.min(b)).to_degrees() < 1.0);
+//! }
+//! # Ok::<(), examples::PipelineError>(())
+//! ```
 mod instance;
 mod model;
 mod report;
