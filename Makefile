@@ -15,15 +15,9 @@ demo: setup
 	$(CARGO) build --release -p examples --bin ipdf
 	mkdir -p runs/demo
 	target/release/ipdf grid --level 4 --out runs/demo/grid_level4.npy --json
-	for variant in uniform texture; do \
-		target/release/ipdf synth --out runs/demo/data/$$variant --variant $$variant --frames 40 --json && \
-		target/release/ipdf label --dataset runs/demo/data/$$variant --report runs/demo/labels_$$variant.json --json \
-			|| exit 1; \
-	done
-	@cat runs/demo/labels_uniform.md runs/demo/labels_texture.md
-	@echo "Wrote runs/demo/grid_level4.npy (294,912 rotations, N×4 w,x,y,z float32), the datasets"
-	@echo "runs/demo/data/{uniform,texture} (BOP format, with scene_pseudo_gt.json labels) and the"
-	@echo "label reports runs/demo/labels_{uniform,texture}.{json,md}."
+	target/release/ipdf pipeline --preset quick --out runs/demo --json
+	@echo "Report: runs/demo/report.md (tables) and runs/demo/report.json; figures in runs/demo/figures/;"
+	@echo "datasets (BOP format, with pseudo labels) in runs/demo/data/, models in runs/demo/models/."
 
 test: setup
 	$(CARGO) test --workspace --all-targets

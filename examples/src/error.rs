@@ -15,6 +15,12 @@ pub enum PipelineError {
     /// Point-cloud registration.
     #[error(transparent)]
     Registration(#[from] registration::RegistrationError),
+    /// The Implicit-PDF model: its configuration, checkpoints, training or inference.
+    #[error(transparent)]
+    Model(#[from] ipdf_model::ModelError),
+    /// Scores of distributions.
+    #[error(transparent)]
+    Metrics(#[from] metrics::MetricsError),
     /// An option out of its range.
     #[error("{name}: {reason}")]
     InvalidOption {

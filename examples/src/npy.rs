@@ -25,22 +25,28 @@ pub fn write_rotations(
     format: RotationFormat,
 ) -> Result<()> {
     let n = rotations.len() as u64;
-    let shape = match format {
-        RotationFormat::Quat => vec![n, 4],
-        RotationFormat::Matrix => vec![n, 3, 3],
+    let (shape, values): (Vec<u64>, Vec<f64>) = match format {
+        RotationFormat::Quat => (
+            vec![n, 4],
+            rotations.iter().flat_map(rotation_to_wxyz).collect(),
+        ),
+        RotationFormat::Matrix => (
+            vec![n, 3, 3],
+            rotations.iter().flat_map(rotation_to_matrix).collect(),
+        ),
     };
+    write_f32(path, &shape, &values)
+}
+
+/// Writes `values` (row-major, `shape`) to `path` as a float32 `.npy` array (atomically).
+pub fn write_f32(path: &Path, shape: &[u64], values: &[f64]) -> Result<()> {
     write_atomically(path, |out| {
         let mut writer = npyz::WriteOptions::<f32>::new()
             .default_dtype()
-            .shape(&shape)
+            .shape(shape)
             .writer(out)
             .begin_nd()?;
-        for q in rotations {
-            match format {
-                RotationFormat::Quat => writer.extend(rotation_to_wxyz(q).map(|v| v as f32))?,
-                RotationFormat::Matrix => writer.extend(rotation_to_matrix(q).map(|v| v as f32))?,
-            }
-        }
+        writer.extend(values.iter().map(|&v| v as f32))?;
         writer.finish()?;
         Ok(())
     })

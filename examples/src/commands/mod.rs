@@ -1,6 +1,11 @@
 //! One module per `ipdf` subcommand.
+pub mod eval;
 pub mod grid;
 pub mod label;
+pub mod pipeline;
+pub mod predict;
 pub mod register;
 pub mod render;
 pub mod synth;
+pub mod train;
+pub mod viz;

@@ -1,0 +1,71 @@
+//! `ipdf eval`: LLH, MAAD and Recall MAAD of a trained model on a split with ground truth,
+//! against the full ground-truth symmetry set of each instance.
+use std::path::PathBuf;
+
+use anyhow::Result;
+use examples::atomic::write_json;
+use examples::dataset::BopDataset;
+use examples::evaluation::evaluate;
+use examples::progress::bar;
+use examples::run_info::RunInfo;
+use examples::training_data::{ExampleOptions, LabelSource, load_examples};
+use ipdf_model::{ImplicitPdf, default_device};
+use serde_json::json;
+
+/// Arguments of `ipdf eval`.
+#[derive(Debug, clap::Args)]
+pub struct EvalArgs {
+    /// Run folder of `ipdf train`.
+    #[arg(long)]
+    pub checkpoint: PathBuf,
+    /// BOP dataset folder (default: the one the model was trained on).
+    #[arg(long)]
+    pub dataset: Option<PathBuf>,
+    /// Split to evaluate on.
+    #[arg(long, default_value = "val")]
+    pub split: String,
+    /// Level of the dense evaluation grid (4: 294,912 rotations).
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(0..=5))]
+    pub level: u8,
+    /// Write the scores here (JSON).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+/// Runs `ipdf eval`; returns `{"object", "obj_id", "labels", "split", "level", "images",
+/// "llh", "maad_deg", "recall_maad_deg"}`.
+pub fn run(args: &EvalArgs) -> Result<serde_json::Value> {
+    let info = RunInfo::read(&args.checkpoint)?;
+    let root = args.dataset.clone().unwrap_or_else(|| info.dataset.clone());
+    let dataset = BopDataset::open(&root, "models")?;
+    let model = ImplicitPdf::load(&args.checkpoint, default_device())?;
+    let examples = load_examples(
+        &dataset,
+        &ExampleOptions {
+            split: args.split.clone(),
+            obj_id: info.obj_id,
+            labels: LabelSource::Single,
+            input_size: model.config().input_size as usize,
+            min_visible_fraction: 0.1,
+            continuous_steps: 1,
+        },
+    )?;
+    let progress = bar(examples.instances.len() as u64, "images");
+    let scores = evaluate(&model, &examples, args.level, &progress)?;
+    progress.finish_and_clear();
+    let result = json!({
+        "object": info.object,
+        "obj_id": info.obj_id,
+        "labels": info.labels,
+        "split": args.split,
+        "level": args.level,
+        "images": scores.images,
+        "llh": scores.llh,
+        "maad_deg": scores.maad_deg,
+        "recall_maad_deg": scores.recall_maad_deg,
+    });
+    if let Some(path) = &args.out {
+        write_json(path, &result)?;
+    }
+    Ok(result)
+}

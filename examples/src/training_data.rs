@@ -1,0 +1,312 @@
+//! Training and evaluation data from a BOP split: for every visible instance of one object, a
+//! square RGB crop around its visible mask (`ipdf_model::crop_object`, background black) and
+//! its rotation label set: the ground-truth pose alone (`single`), the pose expanded by the
+//! object's symmetries from `models_info.json` (`analytical`), or the pseudo labels of
+//! `ipdf label` (`pseudo`). The ground-truth symmetry set is kept beside, when the split has
+//! `scene_gt.json`, for evaluation.
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use ipdf_model::{CropOptions, crop_object};
+use nalgebra::UnitQuaternion;
+use rayon::prelude::*;
+use tch::{Kind, Tensor};
+
+use crate::dataset::{
+    BopDataset, PseudoInstance, read_models_info, read_pseudo_gt, read_scene_gt, read_scene_gt_info,
+};
+use crate::{FileError, PipelineError, images};
+
+/// Which rotations an instance is labelled with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum LabelSource {
+    /// The ground-truth pose of the image alone (what a pose-annotated dataset gives).
+    Single,
+    /// The ground-truth pose with every symmetry of `models_info.json`.
+    Analytical,
+    /// The pseudo labels of `scene_pseudo_gt.json` (no ground truth used).
+    Pseudo,
+}
+
+impl LabelSource {
+    /// `single`, `analytical` or `pseudo`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Single => "single",
+            Self::Analytical => "analytical",
+            Self::Pseudo => "pseudo",
+        }
+    }
+}
+
+/// Which instances become examples, and how.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExampleOptions {
+    /// The split folder.
+    pub split: String,
+    /// The object whose instances are taken.
+    pub obj_id: u32,
+    /// Where the label sets come from.
+    pub labels: LabelSource,
+    /// Side of the square crops (pixels).
+    pub input_size: usize,
+    /// Instances with a smaller visible fraction (`scene_gt_info.json`) are left out.
+    pub min_visible_fraction: f64,
+    /// Steps per turn of a continuous symmetry in `analytical` label sets (the ground-truth
+    /// sets of evaluation always use 200, as the paper).
+    pub continuous_steps: usize,
+}
+
+/// One instance's place in the dataset.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct InstanceRef {
+    /// Scene id.
+    pub scene_id: u32,
+    /// Image id.
+    pub im_id: u32,
+    /// Instance index in the image (mask order).
+    pub instance: usize,
+}
+
+/// Crops, label sets and (where known) ground-truth symmetry sets of one object's instances.
+pub struct Examples {
+    /// `[N, 3, S, S]` crops, 8-bit.
+    pub crops: Tensor,
+    /// One label set per crop.
+    pub label_sets: Vec<Vec<UnitQuaternion<f64>>>,
+    /// The ground-truth symmetry set per crop (continuous axes in 200 steps), when the split
+    /// has ground truth.
+    pub truth_sets: Option<Vec<Vec<UnitQuaternion<f64>>>>,
+    /// Where each crop comes from.
+    pub instances: Vec<InstanceRef>,
+}
+
+/// One instance to crop, before its images are read.
+struct Pending {
+    at: InstanceRef,
+    labels: Vec<UnitQuaternion<f64>>,
+    truth: Option<Vec<UnitQuaternion<f64>>>,
+}
+
+/// The examples of `options.obj_id` in `options.split` of `dataset`. Pseudo labels missing
+/// from a scene are an error that says how to make them; instances whose labelling failed are
+/// left out, as are instances below the visible fraction.
+pub fn load_examples(
+    dataset: &BopDataset,
+    options: &ExampleOptions,
+) -> Result<Examples, PipelineError> {
+    let models = read_models_info(&dataset.models_info_path())?;
+    let group = models
+        .get(&options.obj_id)
+        .map(|m| m.symmetry.clone())
+        .ok_or_else(|| {
+            FileError::new(
+                &dataset.models_info_path(),
+                options.obj_id.to_string(),
+                "no such object",
+            )
+        })?;
+    let mut pending = Vec::new();
+    for scene_id in dataset.scene_ids(&options.split)? {
+        let scene = dataset.scene(&options.split, scene_id);
+        let gt = scene
+            .gt_path()
+            .exists()
+            .then(|| read_scene_gt(&scene.gt_path()))
+            .transpose()?;
+        let visible = scene
+            .gt_info_path()
+            .exists()
+            .then(|| read_scene_gt_info(&scene.gt_info_path()))
+            .transpose()?;
+        let pseudo: Option<BTreeMap<u32, Vec<PseudoInstance>>> = match options.labels {
+            LabelSource::Pseudo => {
+                let path = scene.pseudo_gt_path();
+                if !path.exists() {
+                    return Err(FileError::new(
+                        &path,
+                        "file",
+                        format!(
+                            "missing: make the pseudo labels first with `ipdf label --dataset {} --split {}`",
+                            dataset.root.display(),
+                            options.split
+                        ),
+                    )
+                    .into());
+                }
+                Some(read_pseudo_gt(&path)?)
+            }
+            _ => None,
+        };
+        // Which object each mask shows: from the ground truth, or from the pseudo labels.
+        let object_ids: BTreeMap<u32, Vec<u32>> = match (&gt, &pseudo) {
+            (Some(gt), _) => gt
+                .iter()
+                .map(|(&im, list)| (im, list.iter().map(|i| i.obj_id).collect()))
+                .collect(),
+            (None, Some(pseudo)) => pseudo
+                .iter()
+                .map(|(&im, list)| (im, list.iter().map(|i| i.obj_id).collect()))
+                .collect(),
+            (None, None) => {
+                return Err(FileError::new(
+                    &scene.gt_path(),
+                    "file",
+                    format!(
+                        "missing: {} labels need the ground truth",
+                        options.labels.name()
+                    ),
+                )
+                .into());
+            }
+        };
+        for (im_id, ids) in object_ids {
+            for (instance, &obj_id) in ids.iter().enumerate() {
+                if obj_id != options.obj_id {
+                    continue;
+                }
+                let fraction = visible
+                    .as_ref()
+                    .and_then(|v| v.get(&im_id)?.get(instance))
+                    .map_or(1.0, |info| info.visib_fract);
+                if fraction < options.min_visible_fraction {
+                    continue;
+                }
+                let truth_pose = gt.as_ref().and_then(|gt| gt.get(&im_id)?.get(instance));
+                let truth = truth_pose.map(|t| group.expand(&t.pose.rotation));
+                let labels = match options.labels {
+                    LabelSource::Single => truth_pose.map(|t| vec![t.pose.rotation]),
+                    LabelSource::Analytical => truth_pose.map(|t| {
+                        group
+                            .rotations(options.continuous_steps)
+                            .iter()
+                            .map(|s| t.pose.rotation * s)
+                            .collect()
+                    }),
+                    LabelSource::Pseudo => pseudo
+                        .as_ref()
+                        .and_then(|p| p.get(&im_id)?.get(instance))
+                        .map(|p| p.labels.iter().map(|l| l.pose.rotation).collect()),
+                };
+                let Some(labels) = labels.filter(|l: &Vec<_>| !l.is_empty()) else {
+                    continue;
+                };
+                pending.push(Pending {
+                    at: InstanceRef {
+                        scene_id,
+                        im_id,
+                        instance,
+                    },
+                    labels,
+                    truth,
+                });
+            }
+        }
+    }
+    if pending.is_empty() {
+        return Err(PipelineError::option(
+            "dataset",
+            format!(
+                "no labelled instance of object {} in split {:?} of {}",
+                options.obj_id,
+                options.split,
+                dataset.root.display()
+            ),
+        ));
+    }
+    let crops: Vec<Vec<u8>> = pending
+        .par_iter()
+        .map(|p| {
+            let scene = dataset.scene(&options.split, p.at.scene_id);
+            crop_files(
+                &scene.rgb_path(p.at.im_id),
+                &scene.mask_visib_path(p.at.im_id, p.at.instance),
+                options.input_size,
+            )
+        })
+        .collect::<Result<_, PipelineError>>()?;
+    let size = options.input_size as i64;
+    let crops = Tensor::from_slice(&crops.concat())
+        .reshape([pending.len() as i64, 3, size, size])
+        .to_kind(Kind::Uint8);
+    let has_truth = pending.iter().all(|p| p.truth.is_some());
+    Ok(Examples {
+        crops,
+        truth_sets: has_truth.then(|| pending.iter().filter_map(|p| p.truth.clone()).collect()),
+        label_sets: pending.iter().map(|p| p.labels.clone()).collect(),
+        instances: pending.iter().map(|p| p.at).collect(),
+    })
+}
+
+/// The object a run is for: `obj_id` or the object named `name` (`dataset_info.json`), or the
+/// dataset's only object; with its name (`obj_NNNNNN` when the dataset names none).
+pub fn choose_object(
+    dataset: &BopDataset,
+    obj_id: Option<u32>,
+    name: Option<&str>,
+) -> Result<(u32, String), PipelineError> {
+    let models = read_models_info(&dataset.models_info_path())?;
+    let names = crate::synth::read_dataset_info(dataset)?
+        .map(|info| info.names)
+        .unwrap_or_default();
+    let name_of = |id: u32| {
+        names
+            .get(&id)
+            .cloned()
+            .unwrap_or_else(|| format!("obj_{id:06}"))
+    };
+    let ids: Vec<u32> = models.keys().copied().collect();
+    let chosen = match (obj_id, name) {
+        (Some(id), _) => Some(id).filter(|id| models.contains_key(id)),
+        (None, Some(name)) => ids.iter().copied().find(|&id| name_of(id) == name),
+        (None, None) => (ids.len() == 1).then(|| ids[0]),
+    };
+    let listing = ids
+        .iter()
+        .map(|&id| format!("{id} ({})", name_of(id)))
+        .collect::<Vec<_>>()
+        .join(", ");
+    chosen.map(|id| (id, name_of(id))).ok_or_else(|| {
+        PipelineError::option(
+            "obj_id",
+            format!("choose one of the dataset's objects: {listing}"),
+        )
+    })
+}
+
+/// The 8-bit `[3, size, size]` crop (channel-major) of the colour image at `rgb` around the
+/// mask at `mask` (`ipdf_model::crop_object`).
+pub fn crop_files(rgb: &Path, mask: &Path, size: usize) -> Result<Vec<u8>, PipelineError> {
+    let colour = images::read_rgb(rgb)?;
+    let visible = images::read_mask(mask)?;
+    if (visible.width, visible.height) != (colour.width, colour.height) {
+        return Err(FileError::new(
+            mask,
+            "size",
+            format!(
+                "{}×{} but the colour image is {}×{}",
+                visible.width, visible.height, colour.width, colour.height
+            ),
+        )
+        .into());
+    }
+    let bytes: Vec<u8> = visible.pixels.iter().map(|&m| u8::from(m)).collect();
+    let values = crop_object(
+        colour.pixels.as_flattened(),
+        &bytes,
+        colour.width as usize,
+        colour.height as usize,
+        &CropOptions::new(size),
+    )
+    .map_err(|e| FileError::new(mask, "mask", e.to_string()))?;
+    Ok(values.iter().map(|v| (v * 255.0).round() as u8).collect())
+}
+
+/// An 8-bit crop from [`crop_files`] as the `[3, S, S]` float tensor in `[0, 1]` the model takes.
+pub fn crop_tensor(crop: &[u8], size: usize) -> Tensor {
+    let s = size as i64;
+    Tensor::from_slice(crop)
+        .reshape([3, s, s])
+        .to_kind(Kind::Float)
+        / 255.0
+}

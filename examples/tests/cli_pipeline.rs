@@ -1,0 +1,263 @@
+//! `ipdf train`, `eval`, `predict`, `viz` and `pipeline` through the real binary: a miniature
+//! pipeline (a few dozen frames, tens of training steps) whose every artefact exists and
+//! parses with plausible values, and bad inputs that fail with one line.
+mod common;
+
+use std::path::Path;
+
+use common::{assert_fails, ipdf_json, s};
+use serde_json::Value;
+
+fn read(path: &Path) -> Value {
+    serde_json::from_slice(
+        &std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())),
+    )
+    .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+fn png_size(path: &Path) -> (u32, u32) {
+    image::image_dimensions(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+#[test]
+fn a_miniature_pipeline_writes_every_artefact() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let words = [
+        "pipeline",
+        "--preset",
+        "quick",
+        "--out",
+        s(&out),
+        "--frames",
+        "6",
+        "--val-frames",
+        "2",
+        "--texture-frames",
+        "2",
+        "--epochs",
+        "2",
+        "--steps-per-epoch",
+        "4",
+    ];
+    let result = ipdf_json(&words);
+    let report = read(&out.join("report.json"));
+    assert_eq!(result["report_json"], s(&out.join("report.json")));
+    let markdown = std::fs::read_to_string(out.join("report.md")).unwrap();
+    for object in ["can", "box", "bowl"] {
+        for variant in ["uniform", "texture"] {
+            let entry = &report["labels"][object][variant];
+            let maad = entry["label_maad_deg"].as_f64().unwrap();
+            let coverage = entry["coverage"].as_f64().unwrap();
+            assert!(
+                (0.0..5.0).contains(&maad) && (0.5..=1.0).contains(&coverage),
+                "{object} {variant}: {entry}"
+            );
+        }
+        for labels in ["single", "analytical", "pseudo"] {
+            let scores = &report["models"][labels][object];
+            let llh = scores["llh"].as_f64().unwrap();
+            let maad = scores["maad_deg"].as_f64().unwrap();
+            let recall = scores["recall_maad_deg"].as_f64().unwrap();
+            // Barely trained: near the uniform density (−2.29), but finite and in range.
+            assert!(
+                llh.is_finite() && llh > -20.0 && llh < 10.0,
+                "{labels} {object}: {scores}"
+            );
+            assert!(
+                (0.0..=180.0).contains(&maad) && (0.0..=180.0).contains(&recall),
+                "{scores}"
+            );
+            let run = out.join("models").join(object).join(labels);
+            let log = std::fs::read_to_string(run.join("train_log.csv")).unwrap();
+            assert_eq!(log.lines().count(), 3, "{log}");
+            assert_eq!(read(&run.join("run.json"))["object"], object);
+            assert!(run.join("checkpoint.json").exists());
+            let stem = format!("{object}_{labels}");
+            assert_eq!(
+                png_size(&out.join("figures").join(format!("{stem}.png"))),
+                (1000, 430)
+            );
+            assert_eq!(
+                png_size(&out.join("figures").join(format!("{stem}_curves.png"))),
+                (1000, 420)
+            );
+            assert!(markdown.contains(&format!("figures/{stem}.png")));
+        }
+    }
+    for stage in ["synth", "label", "train", "eval", "figures"] {
+        assert!(report["timing_s"][stage].as_f64().is_some(), "{stage}");
+    }
+    // A rerun skips every stage: nothing is retrained.
+    let checkpoint = read(&out.join("models/can/pseudo/checkpoint.json"));
+    ipdf_json(&words);
+    assert_eq!(
+        read(&out.join("models/can/pseudo/checkpoint.json")),
+        checkpoint
+    );
+
+    // The single commands on the run's artefacts.
+    let run = out.join("models/box/pseudo");
+    let scene = out.join("data/uniform/val/000001");
+    let (rgb, mask) = (
+        scene.join("rgb/000000.png"),
+        scene.join("mask_visib/000000_000000.png"),
+    );
+    let prediction = dir.path().join("prediction.npy");
+    let predicted = ipdf_json(&[
+        "predict",
+        "--checkpoint",
+        s(&run),
+        "--rgb",
+        s(&rgb),
+        "--mask",
+        s(&mask),
+        "--level",
+        "2",
+        "--out",
+        s(&prediction),
+    ]);
+    assert_eq!(predicted["cells"], 4608);
+    assert_eq!(read(&prediction.with_extension("json"))["level"], 2);
+    let bytes = std::fs::read(&prediction).unwrap();
+    assert!(bytes.starts_with(b"\x93NUMPY") && bytes.len() > 4 * 4608);
+    let scores = ipdf_json(&["eval", "--checkpoint", s(&run), "--level", "2"]);
+    assert_eq!(
+        (scores["object"].as_str(), scores["images"].as_u64()),
+        (Some("box"), Some(2))
+    );
+    let figure = dir.path().join("viz.png");
+    ipdf_json(&[
+        "viz",
+        "--checkpoint",
+        s(&run),
+        "--scene",
+        "1",
+        "--image",
+        "0",
+        "--out",
+        s(&figure),
+    ]);
+    assert_eq!(png_size(&figure), (1000, 430));
+    ipdf_json(&["viz", "--train-log", s(&run), "--out", s(&figure)]);
+    assert_eq!(png_size(&figure), (1000, 420));
+
+    // Bad inputs: one line each.
+    let data = out.join("data/uniform");
+    assert_fails(
+        &[
+            "train",
+            "--dataset",
+            s(&data),
+            "--labels",
+            "pseudo",
+            "--out",
+            s(&dir.path().join("x")),
+        ],
+        "obj_id",
+    );
+    assert_fails(
+        &[
+            "train",
+            "--dataset",
+            s(&data),
+            "--labels",
+            "guess",
+            "--out",
+            s(&dir.path().join("x")),
+        ],
+        "guess",
+    );
+    assert_fails(
+        &[
+            "train",
+            "--dataset",
+            s(&data),
+            "--labels",
+            "single",
+            "--object",
+            "can",
+            "--encoder",
+            "vgg",
+            "--out",
+            s(&dir.path().join("x")),
+        ],
+        "vgg",
+    );
+    assert_fails(
+        &[
+            "train",
+            "--dataset",
+            s(&out.join("data/texture")),
+            "--labels",
+            "pseudo",
+            "--object",
+            "can",
+            "--split",
+            "val",
+            "--out",
+            s(&dir.path().join("x")),
+        ],
+        "val",
+    );
+    assert_fails(&["eval", "--checkpoint", s(dir.path())], "run.json");
+    assert_fails(
+        &[
+            "predict",
+            "--checkpoint",
+            s(&run),
+            "--rgb",
+            s(&rgb),
+            "--mask",
+            s(&dir.path().join("none.png")),
+            "--out",
+            s(&prediction),
+        ],
+        "none.png",
+    );
+    assert_fails(&["viz", "--out", s(&figure)], "--train-log");
+    // Another run's folder is not silently continued with other data.
+    assert_fails(
+        &[
+            "train",
+            "--dataset",
+            s(&data),
+            "--labels",
+            "single",
+            "--object",
+            "box",
+            "--out",
+            s(&run),
+            "--encoder",
+            "small-cnn",
+        ],
+        "other data",
+    );
+}
+
+#[test]
+fn pseudo_training_without_labels_says_how_to_make_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    ipdf_json(&[
+        "synth",
+        "--out",
+        s(&data),
+        "--objects",
+        "box",
+        "--frames",
+        "2",
+    ]);
+    assert_fails(
+        &[
+            "train",
+            "--dataset",
+            s(&data),
+            "--labels",
+            "pseudo",
+            "--out",
+            s(&dir.path().join("run")),
+        ],
+        "ipdf label --dataset",
+    );
+}
