@@ -15,6 +15,9 @@ pub const RUN_FILE: &str = "run.json";
 pub struct RunInfo {
     /// The dataset folder.
     pub dataset: PathBuf,
+    /// Its folder of meshes and `models_info.json` (T-LESS: `models_cad`).
+    #[serde(default = "default_models_dir")]
+    pub models_dir: String,
     /// Its training split.
     pub split: String,
     /// `single`, `analytical` or `pseudo`.
@@ -27,7 +30,16 @@ pub struct RunInfo {
     pub occlusion: bool,
 }
 
+fn default_models_dir() -> String {
+    "models".into()
+}
+
 impl RunInfo {
+    /// The dataset, at `root` when given (another copy of it), else where it was trained.
+    pub fn dataset(&self, root: Option<&Path>) -> Result<crate::dataset::BopDataset, FileError> {
+        crate::dataset::BopDataset::open(root.unwrap_or(&self.dataset), &self.models_dir)
+    }
+
     /// Reads `run_dir/run.json`.
     pub fn read(run_dir: &Path) -> Result<Self, FileError> {
         let path = run_dir.join(RUN_FILE);

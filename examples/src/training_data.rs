@@ -310,3 +310,55 @@ pub fn crop_tensor(crop: &[u8], size: usize) -> Tensor {
         .to_kind(Kind::Float)
         / 255.0
 }
+
+/// `count` examples of `object` rendered in memory (no dataset on disk): frames as
+/// [`crate::synth`] draws them, uniform colour, crops of `size` pixels, each labelled and
+/// scored with its full symmetry set. For tests and examples.
+pub fn rendered_examples(
+    object: &crate::synth::SynthObject,
+    count: usize,
+    size: usize,
+    seed: u64,
+) -> Result<Examples, PipelineError> {
+    use rand::SeedableRng;
+    let renderer = crate::synth::FrameRenderer::new(&object.mesh)?;
+    let camera = crate::synth::SynthOptions::t_less_camera().camera;
+    let style = crate::synth::FrameStyle {
+        material: depth_render::Material::Uniform(object.colour),
+        distractors: 0,
+        noise: None,
+    };
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let (width, height) = (camera.width as usize, camera.height as usize);
+    let (mut crops, mut sets, mut instances) = (Vec::new(), Vec::new(), Vec::new());
+    for im_id in 0..count as u32 {
+        let frame = renderer.render(
+            &camera,
+            &crate::synth::ViewRange::default(),
+            &style,
+            &mut rng,
+        )?;
+        let mask: Vec<u8> = frame.mask_visib.iter().map(|&m| u8::from(m)).collect();
+        let crop = crop_object(
+            frame.rgb.as_flattened(),
+            &mask,
+            width,
+            height,
+            &CropOptions::new(size),
+        )?;
+        crops.extend(crop.iter().map(|v| (v * 255.0).round() as u8));
+        sets.push(object.symmetry.expand(&frame.pose.rotation));
+        instances.push(InstanceRef {
+            scene_id: 0,
+            im_id,
+            instance: 0,
+        });
+    }
+    let s = size as i64;
+    Ok(Examples {
+        crops: Tensor::from_slice(&crops).reshape([count as i64, 3, s, s]),
+        label_sets: sets.clone(),
+        truth_sets: Some(sets),
+        instances,
+    })
+}

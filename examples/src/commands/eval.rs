@@ -4,7 +4,6 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use examples::atomic::write_json;
-use examples::dataset::BopDataset;
 use examples::evaluation::evaluate;
 use examples::progress::bar;
 use examples::run_info::RunInfo;
@@ -36,8 +35,7 @@ pub struct EvalArgs {
 /// "llh", "maad_deg", "recall_maad_deg"}`.
 pub fn run(args: &EvalArgs) -> Result<serde_json::Value> {
     let info = RunInfo::read(&args.checkpoint)?;
-    let root = args.dataset.clone().unwrap_or_else(|| info.dataset.clone());
-    let dataset = BopDataset::open(&root, "models")?;
+    let dataset = info.dataset(args.dataset.as_deref())?;
     let model = ImplicitPdf::load(&args.checkpoint, default_device())?;
     let examples = load_examples(
         &dataset,

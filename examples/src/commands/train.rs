@@ -41,6 +41,9 @@ pub struct TrainArgs {
     /// Training split.
     #[arg(long, default_value = "train")]
     pub split: String,
+    /// Folder of the meshes and models_info.json, inside the dataset (T-LESS: models_cad).
+    #[arg(long, default_value = "models")]
+    pub models_dir: String,
     /// Validation split: LLH of its ground-truth symmetry sets every epoch (of its labels of
     /// the training kind when it has no ground truth; skipped when there is no such folder).
     #[arg(long, default_value = "val")]
@@ -92,7 +95,7 @@ pub fn run(args: &TrainArgs, seed: u64) -> Result<serde_json::Value> {
     if args.continuous_steps == 0 {
         bail!("--continuous-steps must be at least 1");
     }
-    let dataset = BopDataset::open(&args.dataset, "models")?;
+    let dataset = BopDataset::open(&args.dataset, &args.models_dir)?;
     let (obj_id, object) = choose_object(&dataset, args.obj_id, args.object.as_deref())?;
     let examples = |split: &str, labels: LabelSource| ExampleOptions {
         split: split.to_string(),
@@ -129,6 +132,7 @@ pub fn run(args: &TrainArgs, seed: u64) -> Result<serde_json::Value> {
     };
     let info = RunInfo {
         dataset: std::path::absolute(&args.dataset)?,
+        models_dir: args.models_dir.clone(),
         split: args.split.clone(),
         labels: args.labels.name().to_string(),
         obj_id,

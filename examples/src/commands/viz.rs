@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use anyhow::{Result, bail};
-use examples::dataset::{BopDataset, read_models_info, read_scene_gt};
+use examples::dataset::{read_models_info, read_scene_gt};
 use examples::evaluation::distribution_figure;
 use examples::plots::{plot_training_curves, write_png};
 use examples::run_info::RunInfo;
@@ -72,8 +72,7 @@ pub fn run(args: &VizArgs) -> Result<serde_json::Value> {
                 distribution_figure(&model, &crop, &[], args.level, &title)?
             }
             (_, _, Some(scene_id), Some(im_id)) => {
-                let root = args.dataset.clone().unwrap_or_else(|| info.dataset.clone());
-                let dataset = BopDataset::open(&root, "models")?;
+                let dataset = info.dataset(args.dataset.as_deref())?;
                 let scene = dataset.scene(&args.split, scene_id);
                 let crop = crop_files(
                     &scene.rgb_path(im_id),

@@ -29,13 +29,7 @@ impl ModelInfo {
     /// and bounding box, all converted to millimetres.
     pub fn of_mesh(mesh: &TriangleMesh, symmetry: &SymmetryGroup) -> Self {
         let (low, high) = mesh.bounds();
-        let mut diameter = 0.0f64;
-        let points = mesh.positions();
-        for (i, a) in points.iter().enumerate() {
-            for b in &points[i + 1..] {
-                diameter = diameter.max(f64::from((a - b).norm()));
-            }
-        }
+        let diameter = crate::label::mesh_diameter(mesh);
         let mm = |v: f32| f64::from(v) * 1e3;
         let mut symmetry = symmetry.clone();
         for s in &mut symmetry.discrete {

@@ -13,7 +13,7 @@ use registration::{
 };
 use so3_grid::geodesic_distance;
 
-use super::model::ObjectModel;
+use super::model::{ObjectModel, max_distance};
 use super::score::{Observation, render_and_compare};
 use super::symmetries::spread;
 use super::{LabelOptions, Strategy};
@@ -107,17 +107,7 @@ pub fn observed_cloud(observation: &Observation) -> Result<PointCloud, LabelFail
 /// A warning when the observed points (downsampled) span more than 1.5 × the model's
 /// diameter: a mesh of another scale, or a mask that covers more than the object.
 pub fn extent_warning(view: &PointCloud, diameter: f64) -> Option<String> {
-    let points = view.points();
-    let extent = points
-        .iter()
-        .enumerate()
-        .map(|(i, a)| {
-            points[i + 1..]
-                .iter()
-                .map(|b| (a - b).norm())
-                .fold(0.0f32, f32::max)
-        })
-        .fold(0.0f32, f32::max);
+    let extent = max_distance(view.points());
     (f64::from(extent) > 1.5 * diameter).then(|| {
         format!(
             "the observed cloud spans {:.0} mm but the model's diameter is {:.0} mm: \

@@ -55,7 +55,7 @@ pub use instance::{
     InstanceLabels, LabelFailure, align_from, extent_warning, global_alignment, initial_pose,
     label_instance, observed_cloud, observed_features, refine_pose, score_pose,
 };
-pub use model::{ObjectModel, mesh_diameter};
+pub use model::{ObjectModel, max_distance, mesh_diameter};
 pub use report::{LabelReport, ObjectLabelScores, report};
 pub use score::{Observation, render_and_compare};
 

@@ -1,7 +1,7 @@
 //! Everything about an object that the labelling of its instances reuses: its model cloud with
 //! features, its renderer and its self-symmetries, computed once per object.
 use depth_render::{Scene, TriangleMesh, sample_surface};
-use nalgebra::Isometry3;
+use nalgebra::{Isometry3, Point3};
 use rayon::prelude::*;
 use registration::{NormalOrientation, PointCloud, PrepareOptions, PreparedCloud, prepare_cloud};
 
@@ -26,9 +26,8 @@ pub struct ObjectModel {
     pub scene: Scene,
 }
 
-/// The largest distance between two vertices of `mesh` (metres), as BOP's `diameter`.
-pub fn mesh_diameter(mesh: &TriangleMesh) -> f64 {
-    let points = mesh.positions();
+/// The largest distance between two of `points` (0 for fewer than two), in parallel.
+pub fn max_distance(points: &[Point3<f32>]) -> f32 {
     points
         .par_iter()
         .enumerate()
@@ -39,7 +38,11 @@ pub fn mesh_diameter(mesh: &TriangleMesh) -> f64 {
                 .fold(0.0f32, f32::max)
         })
         .reduce(|| 0.0, f32::max)
-        .into()
+}
+
+/// The largest distance between two vertices of `mesh` (metres), as BOP's `diameter`.
+pub fn mesh_diameter(mesh: &TriangleMesh) -> f64 {
+    max_distance(mesh.positions()).into()
 }
 
 impl ObjectModel {
