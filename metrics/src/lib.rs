@@ -45,5 +45,7 @@ mod symmetry;
 pub use distribution::{Distribution, GridCell, MASS_SUM_TOLERANCE};
 pub use error::MetricsError;
 pub use nearest::{REFINE_BELOW, nearest_distances};
-pub use score::{RECALL_REFERENCE_LEVEL, RECALL_THRESHOLD, llh, maad, recall_maad};
+pub use score::{
+    RECALL_REFERENCE_LEVEL, RECALL_THRESHOLD, llh, maad, recall_maad, recall_min_log_density,
+};
 pub use symmetry::{CONTINUOUS_STEPS, ContinuousSymmetry, SymmetryGroup};

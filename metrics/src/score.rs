@@ -45,6 +45,14 @@ pub fn maad(dist: &Distribution, gt_set: &[UnitQuaternion<f64>]) -> Result<f64, 
     Ok(total.to_degrees())
 }
 
+/// The log density (`ln(mass / volume)`, as [`llh`] measures it) a cell needs to enter
+/// [`recall_maad`]'s predicted set at `threshold`: `ln(threshold / V₄)`. At the default 1e-3 it
+/// is ≈ 3.40, 295× the uniform density, so a Recall MAAD of a few degrees needs about that
+/// density along the whole ground-truth set.
+pub fn recall_min_log_density(threshold: f64) -> f64 {
+    (threshold / cell_volume(RECALL_REFERENCE_LEVEL)).ln()
+}
+
 /// Recall MAAD, in degrees: the mean over `gt_set` of the distance from each ground-truth
 /// rotation to the nearest *predicted* rotation, where the predicted set is every cell whose
 /// mass, rescaled to the volume of a level-4 cell (`mass · V₄ / V_cell`, so that refining a

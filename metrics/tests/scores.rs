@@ -3,6 +3,7 @@ use std::f64::consts::{FRAC_PI_2, PI};
 
 use metrics::{
     Distribution, GridCell, MetricsError, RECALL_THRESHOLD, SymmetryGroup, llh, maad, recall_maad,
+    recall_min_log_density,
 };
 use nalgebra::{UnitQuaternion, Vector3};
 use proptest::prelude::*;
@@ -150,6 +151,32 @@ fn symmetric_gt_sets_lower_maad_and_recall_needs_every_member() {
     // The uniform distribution scores lower MAAD against the 2-element set than against one.
     let uniform = Distribution::uniform(&grid);
     assert!(maad(&uniform, &set).unwrap() < maad(&uniform, &set[..1]).unwrap() - 10.0);
+}
+
+#[test]
+fn recall_admits_cells_exactly_above_the_minimum_log_density() {
+    // One cell of a level-3 grid at a chosen density, the rest of the mass on a cell far from
+    // it: the first joins the predicted set (recall of its own rotation ≈ 0) just above the
+    // minimum log density and not just below it (then only the other cell is predicted).
+    let grid = Grid::new(3).unwrap();
+    let minimum = recall_min_log_density(RECALL_THRESHOLD);
+    assert!((minimum - (RECALL_THRESHOLD * 294_912.0 / PI.powi(2)).ln()).abs() < 1e-9);
+    let rotations = random_rotations(2, 8);
+    let (target, elsewhere) = (
+        grid.locate(&rotations[0]).unwrap(),
+        grid.locate(&rotations[1]).unwrap(),
+    );
+    assert_ne!(target, elsewhere);
+    let recall_at = |factor: f64| {
+        let mass = (minimum.exp() * factor) * cell_volume(3);
+        let mut masses = vec![0.0; grid.len() as usize];
+        masses[target as usize] = mass;
+        masses[elsewhere as usize] = 1.0 - mass;
+        let dist = Distribution::dense(&grid, masses).unwrap();
+        recall_maad(&dist, &[rotations[0]], RECALL_THRESHOLD).unwrap()
+    };
+    assert!(recall_at(1.01) < 8.0);
+    assert!(recall_at(0.99) > 8.0);
 }
 
 #[test]
