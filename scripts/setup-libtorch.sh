@@ -35,7 +35,7 @@ python=${PYTHON:-python3}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
-echo "libtorch: downloading torch $TORCH_VERSION and the CUDA runtime wheels (about 1 GB, once)"
+echo "libtorch: downloading torch $TORCH_VERSION and the CUDA runtime wheels (about 0.55 GB, once)"
 cache="$work/wheels"
 mkdir -p "$cache"
 for spec in "torch==$TORCH_VERSION" "$CUDART_SPEC" "$CUPTI_SPEC"; do
