@@ -8,7 +8,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use examples::synth::{ObjectKind, SynthObject};
-use examples::training_data::rendered_examples;
+use examples::training_data::{rendered_examples, to_unit_floats};
 use ipdf_model::{ImplicitPdf, ModelConfig, QuerySampling, TrainOptions, Trainer};
 
 /// Side of the crops.
@@ -22,7 +22,7 @@ fn main() -> Result<()> {
     );
     let cube = SynthObject::built_in(ObjectKind::Cube)?;
     let examples = rendered_examples(&cube, 64, SIZE, 0)?;
-    let images = examples.crops.to_kind(tch::Kind::Float) / 255.0;
+    let images = to_unit_floats(&examples.crops);
     let labels = examples.label_sets; // each pose with its 23 symmetric ones
     let model = ImplicitPdf::new(
         ModelConfig::small(SIZE as i64),

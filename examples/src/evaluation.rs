@@ -7,11 +7,10 @@ use indicatif::ProgressBar;
 use ipdf_model::{ImplicitPdf, Predictor};
 use metrics::{Distribution, RECALL_THRESHOLD, llh, maad, recall_maad};
 use so3_grid::Grid;
-use tch::Kind;
 
 use crate::PipelineError;
 use crate::plots::plot_distribution;
-use crate::training_data::{Examples, crop_tensor};
+use crate::training_data::{Examples, crop_tensor, to_unit_floats};
 
 /// Mean scores over the crops evaluated.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -44,7 +43,7 @@ pub fn evaluate(
     let mut predictor = Predictor::new(model);
     let (mut sum_llh, mut sum_maad, mut sum_recall) = (0.0, 0.0, 0.0);
     for (i, truth) in truths.iter().enumerate() {
-        let crop = examples.crops.get(i as i64).to_kind(Kind::Float) / 255.0;
+        let crop = to_unit_floats(&examples.crops.get(i as i64));
         let masses = predictor.probabilities(&crop, level)?;
         let distribution = Distribution::dense(&grid, masses)?;
         sum_llh += llh(&distribution, truth)?;

@@ -290,25 +290,40 @@ pub fn crop_files(rgb: &Path, mask: &Path, size: usize) -> Result<Vec<u8>, Pipel
         )
         .into());
     }
-    let bytes: Vec<u8> = visible.pixels.iter().map(|&m| u8::from(m)).collect();
-    let values = crop_object(
+    crop_bytes(
         colour.pixels.as_flattened(),
-        &bytes,
+        &visible.pixels,
         colour.width as usize,
         colour.height as usize,
-        &CropOptions::new(size),
+        size,
     )
-    .map_err(|e| FileError::new(mask, "mask", e.to_string()))?;
+    .map_err(|e| FileError::new(mask, "mask", e.to_string()).into())
+}
+
+/// The 8-bit `[3, size, size]` crop (`ipdf_model::crop_object`) of a row-major RGB image
+/// around the true pixels of `mask`.
+fn crop_bytes(
+    rgb: &[u8],
+    mask: &[bool],
+    width: usize,
+    height: usize,
+    size: usize,
+) -> Result<Vec<u8>, ipdf_model::ModelError> {
+    let mask: Vec<u8> = mask.iter().map(|&m| u8::from(m)).collect();
+    let values = crop_object(rgb, &mask, width, height, &CropOptions::new(size))?;
     Ok(values.iter().map(|v| (v * 255.0).round() as u8).collect())
 }
 
 /// An 8-bit crop from [`crop_files`] as the `[3, S, S]` float tensor in `[0, 1]` the model takes.
 pub fn crop_tensor(crop: &[u8], size: usize) -> Tensor {
     let s = size as i64;
-    Tensor::from_slice(crop)
-        .reshape([3, s, s])
-        .to_kind(Kind::Float)
-        / 255.0
+    to_unit_floats(&Tensor::from_slice(crop).reshape([3, s, s]))
+}
+
+/// 8-bit crops (one, or a batch as in [`Examples::crops`]) as the floats in `[0, 1]` the model
+/// takes.
+pub fn to_unit_floats(crops: &Tensor) -> Tensor {
+    crops.to_kind(Kind::Float) / 255.0
 }
 
 /// `count` examples of `object` rendered in memory (no dataset on disk): frames as
@@ -338,15 +353,13 @@ pub fn rendered_examples(
             &style,
             &mut rng,
         )?;
-        let mask: Vec<u8> = frame.mask_visib.iter().map(|&m| u8::from(m)).collect();
-        let crop = crop_object(
+        crops.extend(crop_bytes(
             frame.rgb.as_flattened(),
-            &mask,
+            &frame.mask_visib,
             width,
             height,
-            &CropOptions::new(size),
-        )?;
-        crops.extend(crop.iter().map(|v| (v * 255.0).round() as u8));
+            size,
+        )?);
         sets.push(object.symmetry.expand(&frame.pose.rotation));
         instances.push(InstanceRef {
             scene_id: 0,
