@@ -10,13 +10,18 @@ mod commands;
 /// Learn the full set of symmetric orientations of an object from RGB-D images and its mesh,
 /// without pose labels.
 #[derive(Debug, Parser)]
-#[command(name = "ipdf", version, about)]
+#[command(name = "ipdf", version, about, arg_required_else_help = true)]
 struct Cli {
     /// Random seed (every command is deterministic given it).
     #[arg(long, global = true, default_value_t = 0)]
     seed: u64,
-    /// Worker threads (0: one per core).
-    #[arg(long, global = true, default_value_t = 0)]
+    /// Worker threads (0: one per core; at most 1024).
+    #[arg(
+        long,
+        global = true,
+        default_value_t = 0,
+        value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(0..=MAX_THREADS)
+    )]
     threads: usize,
     /// Print the command's result as one line of JSON.
     #[arg(long, global = true)]
@@ -65,6 +70,11 @@ fn run(cli: &Cli) -> Result<serde_json::Value> {
     }
 }
 
+/// The most worker threads `--threads` accepts: far more than any machine's cores, while a
+/// pool of this size still starts in well under a second (an unbounded count would try to start
+/// that many threads and hang).
+const MAX_THREADS: u64 = 1024;
+
 /// Set in the environment of the process `ipdf` re-executes itself as.
 const REEXECUTED: &str = "IPDF_REEXECUTED";
 
@@ -92,7 +102,15 @@ fn main() -> ExitCode {
     use_huge_pages();
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
-        Err(error) if !error.use_stderr() => error.exit(), // --help, --version
+        // --help, --version, and no subcommand at all: clap prints the help (and exits 2 for the
+        // last).
+        Err(error)
+            if !error.use_stderr()
+                || error.kind()
+                    == clap::error::ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand =>
+        {
+            error.exit()
+        }
         Err(error) => {
             // clap's first line names the bad flag; the usage that follows is in --help.
             let text = error.render().to_string();

@@ -5,7 +5,7 @@
 //! `ipdf label` (`pseudo`). The ground-truth symmetry set is kept beside, when the split has
 //! `scene_gt.json`, for evaluation.
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use ipdf_model::{CropOptions, crop_object};
 use nalgebra::UnitQuaternion;
@@ -214,17 +214,39 @@ pub fn load_examples(
             ),
         ));
     }
-    let crops: Vec<Vec<u8>> = pending
+    // Crops; an instance whose visible mask is empty (fully occluded: BOP keeps them, with
+    // `visib_fract` 0) is left out, like one below the visible fraction.
+    let crops: Vec<Option<Vec<u8>>> = pending
         .par_iter()
         .map(|p| {
             let scene = dataset.scene(&options.split, p.at.scene_id);
-            crop_files(
+            match crop_files(
                 &scene.rgb_path(p.at.im_id),
-                &scene.mask_visib_path(p.at.im_id, p.at.instance),
+                &scene.visible_mask_path(p.at.im_id, p.at.instance),
                 options.input_size,
-            )
+            ) {
+                Ok(crop) => Ok(Some(crop)),
+                Err(CropError::EmptyMask(_)) => Ok(None),
+                Err(CropError::Failed(error)) => Err(error),
+            }
         })
         .collect::<Result<_, PipelineError>>()?;
+    let (pending, crops): (Vec<Pending>, Vec<Vec<u8>>) = pending
+        .into_iter()
+        .zip(crops)
+        .filter_map(|(p, crop)| Some((p, crop?)))
+        .unzip();
+    if pending.is_empty() {
+        return Err(PipelineError::option(
+            "dataset",
+            format!(
+                "every instance of object {} in split {:?} of {} has an empty visible mask",
+                options.obj_id,
+                options.split,
+                dataset.root.display()
+            ),
+        ));
+    }
     let size = options.input_size as i64;
     let crops = Tensor::from_slice(&crops.concat())
         .reshape([pending.len() as i64, 3, size, size])
@@ -274,21 +296,39 @@ pub fn choose_object(
     })
 }
 
+/// Why [`crop_files`] gave no crop.
+#[derive(Debug, thiserror::Error)]
+pub enum CropError {
+    /// The mask file selects no pixel (e.g. a fully occluded instance).
+    #[error("{}: mask: the object mask is empty", .0.display())]
+    EmptyMask(PathBuf),
+    /// Unreadable images, mismatched sizes or a bad crop size.
+    #[error(transparent)]
+    Failed(#[from] PipelineError),
+}
+
+impl From<CropError> for PipelineError {
+    fn from(error: CropError) -> Self {
+        match error {
+            CropError::Failed(error) => error,
+            CropError::EmptyMask(path) => {
+                FileError::new(&path, "mask", "the object mask is empty").into()
+            }
+        }
+    }
+}
+
 /// The 8-bit `[3, size, size]` crop (channel-major) of the colour image at `rgb` around the
 /// mask at `mask` (`ipdf_model::crop_object`).
-pub fn crop_files(rgb: &Path, mask: &Path, size: usize) -> Result<Vec<u8>, PipelineError> {
-    let colour = images::read_rgb(rgb)?;
-    let visible = images::read_mask(mask)?;
+pub fn crop_files(rgb: &Path, mask: &Path, size: usize) -> Result<Vec<u8>, CropError> {
+    let colour = images::read_rgb(rgb).map_err(PipelineError::from)?;
+    let visible = images::read_mask(mask).map_err(PipelineError::from)?;
     if (visible.width, visible.height) != (colour.width, colour.height) {
-        return Err(FileError::new(
-            mask,
-            "size",
-            format!(
-                "{}×{} but the colour image is {}×{}",
-                visible.width, visible.height, colour.width, colour.height
-            ),
-        )
-        .into());
+        let reason = format!(
+            "{}×{} but the colour image is {}×{}",
+            visible.width, visible.height, colour.width, colour.height
+        );
+        return Err(PipelineError::from(FileError::new(mask, "size", reason)).into());
     }
     crop_bytes(
         colour.pixels.as_flattened(),
@@ -297,7 +337,10 @@ pub fn crop_files(rgb: &Path, mask: &Path, size: usize) -> Result<Vec<u8>, Pipel
         colour.height as usize,
         size,
     )
-    .map_err(|e| FileError::new(mask, "mask", e.to_string()).into())
+    .map_err(|error| match error {
+        ipdf_model::ModelError::EmptyMask => CropError::EmptyMask(mask.to_path_buf()),
+        error => PipelineError::from(error).into(),
+    })
 }
 
 /// The 8-bit `[3, size, size]` crop (`ipdf_model::crop_object`) of a row-major RGB image

@@ -173,6 +173,17 @@ fn bad_instances_are_recorded_and_the_run_goes_on() {
     assert!(error("0", 0).contains("the mask is empty"), "{labels}");
     assert!(error("0", 1).contains("object 9"), "{labels}");
     assert!(error("1", 0).contains("700×500"), "{labels}");
+    assert!(error("1", 0).contains("000001_000000.png"), "{labels}");
+    let failures = &run["failures"];
+    for kind in [
+        "empty mask",
+        "object without model",
+        "mask size differs from depth",
+        "no depth in mask",
+        "unreadable input",
+    ] {
+        assert_eq!(failures[kind], 1, "{kind}: {run}");
+    }
     assert!(error("2", 0).contains("no valid depth"), "{labels}");
     assert!(error("3", 0).contains("000003_000000.png"), "{labels}");
     assert!(
@@ -221,6 +232,13 @@ fn bad_flags_and_missing_inputs_fail_with_one_line() {
     assert_fails(
         &["label", "--dataset", s(dir.path()), "--split", "test"],
         "test",
+    );
+    // A split whose scene folders are not named as BOP names them.
+    std::fs::create_dir_all(dir.path().join("models")).unwrap();
+    std::fs::create_dir_all(dir.path().join("odd/1")).unwrap();
+    assert_fails(
+        &["label", "--dataset", s(dir.path()), "--split", "odd"],
+        "six-digit",
     );
     assert_fails(
         &["label", "--dataset", s(dir.path()), "--labels", "x"],

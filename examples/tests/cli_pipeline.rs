@@ -216,6 +216,35 @@ fn a_miniature_pipeline_writes_every_artefact() {
         "none.png",
     );
     assert_fails(&["viz", "--out", s(&figure)], "--train-log");
+    // Scene 0 shows the can: the box's model is not drawn on it.
+    assert_fails(
+        &[
+            "viz",
+            "--checkpoint",
+            s(&run),
+            "--scene",
+            "0",
+            "--image",
+            "0",
+            "--out",
+            s(&figure),
+        ],
+        "the model is for object 2",
+    );
+    let train = |flag: &str, value: &str| {
+        let out = dir.path().join("x");
+        let mut args = vec!["train", "--dataset", s(&data), "--labels", "single"];
+        args.extend(["--object", "box", "--out", s(&out), flag, value]);
+        args.iter().map(|a| a.to_string()).collect::<Vec<_>>()
+    };
+    for (flag, value, expected) in [
+        ("--input-size", "0", "input_size"),
+        ("--batch-size", "0", "--batch-size"),
+    ] {
+        let args = train(flag, value);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        assert_fails(&args, expected);
+    }
     // Another run's folder is not silently continued with other data.
     assert_fails(
         &[

@@ -20,6 +20,9 @@ pub struct EvalArgs {
     /// BOP dataset folder (default: the one the model was trained on).
     #[arg(long)]
     pub dataset: Option<PathBuf>,
+    /// The dataset's models folder (default: the one the model was trained with).
+    #[arg(long)]
+    pub models_dir: Option<String>,
     /// Split to evaluate on.
     #[arg(long, default_value = "val")]
     pub split: String,
@@ -34,7 +37,10 @@ pub struct EvalArgs {
 /// Runs `ipdf eval`; returns `{"object", "obj_id", "labels", "split", "level", "images",
 /// "llh", "maad_deg", "recall_maad_deg"}`.
 pub fn run(args: &EvalArgs) -> Result<serde_json::Value> {
-    let info = RunInfo::read(&args.checkpoint)?;
+    let mut info = RunInfo::read(&args.checkpoint)?;
+    if let Some(models_dir) = &args.models_dir {
+        info.models_dir.clone_from(models_dir);
+    }
     let dataset = info.dataset(args.dataset.as_deref())?;
     let model = ImplicitPdf::load(&args.checkpoint, default_device())?;
     let examples = load_examples(

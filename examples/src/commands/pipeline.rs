@@ -2,7 +2,8 @@
 //! uniform and textured datasets → pseudo-label them → train Single, Analytical and Pseudo
 //! models per object on the uniform one → evaluate on its validation split → `report.md` /
 //! `report.json` with the paper's tables filled by measured numbers, and figures. Each stage is
-//! skipped when its outputs exist.
+//! skipped when its outputs exist. The run's settings are recorded in `pipeline_config.json`
+//! when it starts, and a rerun into the same folder with other settings is refused.
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -101,7 +102,8 @@ pub struct PipelineArgs {
     /// How big a run.
     #[arg(long, value_enum, default_value = "quick")]
     pub preset: Preset,
-    /// Run folder (a rerun skips finished stages).
+    /// Run folder (a rerun with the same settings skips finished stages; one with other
+    /// settings is refused: see `pipeline_config.json`).
     #[arg(long)]
     pub out: PathBuf,
     /// Override the preset's training frames per object (uniform dataset).
@@ -163,6 +165,9 @@ pub fn run(args: &PipelineArgs, seed: u64) -> Result<Value> {
     };
     let out = &args.out;
     std::fs::create_dir_all(out)?;
+    let config = run_config(&plan, args.preset, seed);
+    check_run_config(out, &config)?;
+    write_json(&out.join(CONFIG_FILE), &config)?;
     let mut timing = Map::new();
     let mut stage = |name: &str, started: Instant| {
         timing.insert(name.to_string(), json!(started.elapsed().as_secs_f64()));
@@ -373,6 +378,92 @@ pub fn run(args: &PipelineArgs, seed: u64) -> Result<Value> {
     )
 }
 
+/// The file in the run folder recording the settings the run was started with.
+const CONFIG_FILE: &str = "pipeline_config.json";
+
+/// The settings that decide a run's outputs, as `pipeline_config.json` and the `"config"` of
+/// `report.json` hold them. Numbers pass through JSON text once, so that they compare equal to
+/// what a file read back holds.
+fn run_config(plan: &Plan, preset: Preset, seed: u64) -> Value {
+    let value = json!({
+        "preset": format!("{preset:?}").to_lowercase(), "seed": seed,
+        "frames_per_object": plan.frames, "val_frames_per_object": plan.val_frames,
+        "texture_frames_per_object": plan.texture_frames,
+        "encoder": plan.encoder, "input_size": plan.input_size, "head": plan.head,
+        "epochs": plan.epochs, "steps_per_epoch": plan.steps_per_epoch, "batch_size": plan.batch_size,
+        "learning_rate": plan.learning_rate, "query_level": plan.query_level,
+        "eval_level": plan.eval_level, "occlusion": plan.occlusion, "backbones": plan.backbones,
+        "training_data": "uniform",
+    });
+    serde_json::from_str(&value.to_string()).unwrap_or(value)
+}
+
+/// The keys of [`run_config`] set by command-line flags, and the flags.
+const FLAGS: [(&str, &str); 7] = [
+    ("preset", "--preset"),
+    ("seed", "--seed"),
+    ("frames_per_object", "--frames"),
+    ("val_frames_per_object", "--val-frames"),
+    ("texture_frames_per_object", "--texture-frames"),
+    ("epochs", "--epochs"),
+    ("steps_per_epoch", "--steps-per-epoch"),
+];
+
+/// The command-line flag that sets a key of [`run_config`], for error messages.
+fn flag_of(key: &str) -> String {
+    let flag = FLAGS
+        .iter()
+        .find(|f| f.0 == key)
+        .map_or("set by --preset", |f| f.1);
+    format!(" ({flag})")
+}
+
+/// Refuses a run folder whose recorded settings differ from `config`, naming the first that
+/// does: `pipeline_config.json`, or for a folder from an older version without one, the
+/// `"config"` of its `report.json`. A folder with neither is a new run.
+fn check_run_config(out: &Path, config: &Value) -> Result<()> {
+    let config_path = out.join(CONFIG_FILE);
+    let report_path = out.join("report.json");
+    let (path, recorded) = if config_path.exists() {
+        (&config_path, read_json(&config_path)?)
+    } else if report_path.exists() {
+        (&report_path, read_json(&report_path)?["config"].clone())
+    } else {
+        return Ok(());
+    };
+    let (Some(recorded), Some(config)) = (recorded.as_object(), config.as_object()) else {
+        anyhow::bail!("{}: config: not a JSON object", path.display());
+    };
+    // The settings given on the command line first, so that the one named is the one changed.
+    let first = FLAGS.iter().map(|&(key, _)| key);
+    let rest = config
+        .keys()
+        .map(String::as_str)
+        .filter(|key| !FLAGS.iter().any(|f| f.0 == *key));
+    for key in first.chain(rest) {
+        let Some(value) = config.get(key) else {
+            continue;
+        };
+        // Keys an older report.json lacks are not compared.
+        let Some(found) = recorded
+            .get(key)
+            .or((path == &config_path).then_some(&Value::Null))
+        else {
+            continue;
+        };
+        if found != value {
+            anyhow::bail!(
+                "{}: {key}{}: the run in {} was made with {found}, this run asks for {value}; \
+                 rerun with the same settings to resume it, or choose another --out",
+                path.display(),
+                flag_of(key),
+                out.display()
+            );
+        }
+    }
+    Ok(())
+}
+
 /// The distribution figure of `run`'s model for the first validation image of its object.
 fn first_validation_figure(run: &ModelRun, data: &Path, level: u8) -> Result<image::RgbImage> {
     let info = RunInfo::read(&run.dir)?;
@@ -455,15 +546,7 @@ fn report_json(
         "models_occlusion": occluded,
         "backbones": backbones,
         "timing_s": timing,
-        "config": {
-            "preset": format!("{preset:?}").to_lowercase(), "seed": seed,
-            "frames_per_object": plan.frames, "val_frames_per_object": plan.val_frames,
-            "texture_frames_per_object": plan.texture_frames,
-            "encoder": plan.encoder, "input_size": plan.input_size, "head": plan.head,
-            "epochs": plan.epochs, "steps_per_epoch": plan.steps_per_epoch, "batch_size": plan.batch_size,
-            "learning_rate": plan.learning_rate, "eval_level": plan.eval_level,
-            "training_data": "uniform",
-        },
+        "config": run_config(plan, preset, seed),
     })
 }
 

@@ -7,8 +7,8 @@ use examples::FileError;
 use examples::atomic::write_atomically;
 use nalgebra::{Isometry3, Matrix4, Point3};
 use registration::{
-    IcpMethod, NormalOrientation, PointCloud, PrepareOptions, PreparedCloud, RegisterOptions,
-    prepare_cloud, read_ply, register,
+    Alignment, IcpMethod, NormalOrientation, PointCloud, PrepareOptions, PreparedCloud,
+    RegisterOptions, prepare_cloud, read_ply, register,
 };
 use serde_json::json;
 
@@ -102,6 +102,17 @@ pub fn run(args: &RegisterArgs, seed: u64) -> Result<serde_json::Value> {
             args.target.display()
         )
     })?;
+    check_overlap(
+        &found.alignment,
+        register_options.icp.max_correspondence_distance,
+    )
+    .with_context(|| {
+        format!(
+            "registering {} to {}",
+            args.source.display(),
+            args.target.display()
+        )
+    })?;
     let matrix = found.alignment.pose.to_homogeneous();
     let summary = json!({
         "transformation": (0..16).map(|k| matrix[(k / 4, k % 4)]).collect::<Vec<f64>>(),
@@ -122,6 +133,19 @@ pub fn run(args: &RegisterArgs, seed: u64) -> Result<serde_json::Value> {
         })?;
     }
     Ok(summary)
+}
+
+/// Refuses an alignment with no source point within ICP's correspondence distance
+/// (`max_correspondence_distance`, metres) of the target at the pose reached (fitness 0): the
+/// data do not support that pose, however it was found.
+fn check_overlap(alignment: &Alignment, max_correspondence_distance: f32) -> Result<()> {
+    if alignment.fitness.is_nan() || alignment.fitness <= 0.0 {
+        anyhow::bail!(
+            "ICP ended with 0 correspondences (fitness 0) within {max_correspondence_distance} m; \
+             the clouds do not overlap at the pose found (check --scale, --voxel and --initial)"
+        );
+    }
+    Ok(())
 }
 
 fn prepare(cloud: &PointCloud, options: &PrepareOptions, path: &Path) -> Result<PreparedCloud> {
@@ -157,4 +181,29 @@ fn read_transformation(path: &Path) -> Result<Isometry3<f64>> {
     }
     let translation = nalgebra::Translation3::new(matrix[(0, 3)], matrix[(1, 3)], matrix[(2, 3)]);
     Ok(Isometry3::from_parts(translation, rotation))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn alignment(fitness: f64) -> Alignment {
+        Alignment {
+            pose: Isometry3::translation(1.6, 0.0, 0.0),
+            fitness,
+            inlier_rmse: 0.0,
+            iterations: 1,
+        }
+    }
+
+    #[test]
+    fn an_alignment_without_inliers_is_an_error() {
+        for fitness in [0.0, f64::NAN] {
+            let error = check_overlap(&alignment(fitness), 0.0075).unwrap_err();
+            let text = format!("{error:#}");
+            assert!(text.contains("0 correspondences"), "{text}");
+            assert_eq!(text.lines().count(), 1, "{text}");
+        }
+        assert!(check_overlap(&alignment(0.3), 0.0075).is_ok());
+    }
 }

@@ -12,7 +12,8 @@ use serde_json::json;
 /// Arguments of `ipdf synth`.
 #[derive(Debug, clap::Args)]
 pub struct SynthArgs {
-    /// Dataset folder (created; a rerun completes unfinished scenes).
+    /// Dataset folder (created; a rerun with the same options completes unfinished scenes, one
+    /// with other options is refused: see the split's `synth_options.json`).
     #[arg(long)]
     pub out: PathBuf,
     /// Built-in objects, comma-separated (object ids from 1 in this order).
@@ -39,7 +40,7 @@ pub struct SynthArgs {
     /// Frames per scene folder.
     #[arg(long, default_value_t = 1000)]
     pub frames_per_scene: usize,
-    /// Split folder to write (`train`, `val`, …).
+    /// Split folder to write (`train`, `val`, …): one plain folder name.
     #[arg(long, default_value = "train")]
     pub split: String,
     /// Distractor objects per frame (occluders, not annotated).

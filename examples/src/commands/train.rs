@@ -95,6 +95,20 @@ pub fn run(args: &TrainArgs, seed: u64) -> Result<serde_json::Value> {
     if args.continuous_steps == 0 {
         bail!("--continuous-steps must be at least 1");
     }
+    if args.batch_size == 0 {
+        bail!("--batch-size must be at least 1");
+    }
+    if args.out.exists() && !args.out.is_dir() {
+        bail!("--out {}: exists and is not a folder", args.out.display());
+    }
+    let config = ModelConfig {
+        encoder: args.encoder,
+        input_size: args.input_size as i64,
+        head_sizes: args.head.clone(),
+        seed,
+        ..ModelConfig::default()
+    };
+    config.validate()?;
     let dataset = BopDataset::open(&args.dataset, &args.models_dir)?;
     let (obj_id, object) = choose_object(&dataset, args.obj_id, args.object.as_deref())?;
     let examples = |split: &str, labels: LabelSource| ExampleOptions {
@@ -122,13 +136,6 @@ pub fn run(args: &TrainArgs, seed: u64) -> Result<serde_json::Value> {
         Some(load_examples(&dataset, &examples(&args.val_split, labels))?)
     } else {
         None
-    };
-    let config = ModelConfig {
-        encoder: args.encoder,
-        input_size: args.input_size as i64,
-        head_sizes: args.head.clone(),
-        seed,
-        ..ModelConfig::default()
     };
     let info = RunInfo {
         dataset: std::path::absolute(&args.dataset)?,

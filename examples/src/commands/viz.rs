@@ -22,10 +22,10 @@ pub struct VizArgs {
     #[arg(long)]
     pub checkpoint: Option<PathBuf>,
     /// Colour image.
-    #[arg(long, requires = "mask", conflicts_with = "scene")]
+    #[arg(long, conflicts_with = "scene")]
     pub rgb: Option<PathBuf>,
     /// The object's mask in it.
-    #[arg(long, requires = "rgb")]
+    #[arg(long)]
     pub mask: Option<PathBuf>,
     /// Dataset folder of --scene/--image (default: the run's); draws the ground truth too.
     #[arg(long)]
@@ -34,10 +34,10 @@ pub struct VizArgs {
     #[arg(long, default_value = "val")]
     pub split: String,
     /// Scene id in the dataset.
-    #[arg(long, requires = "image")]
+    #[arg(long)]
     pub scene: Option<u32>,
     /// Image id in the scene.
-    #[arg(long, requires = "scene")]
+    #[arg(long)]
     pub image: Option<u32>,
     /// Instance index in the image (mask order).
     #[arg(long, default_value_t = 0)]
@@ -74,24 +74,39 @@ pub fn run(args: &VizArgs) -> Result<serde_json::Value> {
             (_, _, Some(scene_id), Some(im_id)) => {
                 let dataset = info.dataset(args.dataset.as_deref())?;
                 let scene = dataset.scene(&args.split, scene_id);
-                let crop = crop_files(
-                    &scene.rgb_path(im_id),
-                    &scene.mask_visib_path(im_id, args.instance),
-                    size,
-                )?;
                 let truth = if scene.gt_path().exists() {
                     let gt = read_scene_gt(&scene.gt_path())?;
-                    let models = read_models_info(&dataset.models_info_path())?;
-                    match gt.get(&im_id).and_then(|list| list.get(args.instance)) {
-                        Some(t) => models
-                            .get(&t.obj_id)
-                            .map(|m| m.symmetry.expand(&t.pose.rotation))
-                            .unwrap_or_else(|| vec![t.pose.rotation]),
-                        None => Vec::new(),
+                    let Some(t) = gt.get(&im_id).and_then(|list| list.get(args.instance)) else {
+                        bail!(
+                            "{}: image {im_id} has no instance {}",
+                            scene.gt_path().display(),
+                            args.instance
+                        );
+                    };
+                    if t.obj_id != info.obj_id {
+                        bail!(
+                            "{}: instance {} of image {im_id} is object {}, the model is for \
+                             object {} ({}); choose its instance with --instance",
+                            scene.gt_path().display(),
+                            args.instance,
+                            t.obj_id,
+                            info.obj_id,
+                            info.object
+                        );
                     }
+                    let models = read_models_info(&dataset.models_info_path())?;
+                    models
+                        .get(&t.obj_id)
+                        .map(|m| m.symmetry.expand(&t.pose.rotation))
+                        .unwrap_or_else(|| vec![t.pose.rotation])
                 } else {
                     Vec::new()
                 };
+                let crop = crop_files(
+                    &scene.rgb_path(im_id),
+                    &scene.visible_mask_path(im_id, args.instance),
+                    size,
+                )?;
                 distribution_figure(&model, &crop, &truth, args.level, &title)?
             }
             _ => bail!("--checkpoint needs --rgb and --mask, or --scene and --image"),

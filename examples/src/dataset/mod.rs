@@ -154,6 +154,18 @@ impl SceneDir {
             .join(format!("{im_id:06}_{instance:06}.png"))
     }
 
+    /// The mask of instance `instance`'s visible part, `mask_visib/{im_id:06}_{instance:06}.png`,
+    /// or, in a dataset without a `mask_visib` folder, its full silhouette from `mask/`.
+    pub fn visible_mask_path(&self, im_id: u32, instance: usize) -> PathBuf {
+        let visible = self.mask_visib_path(im_id, instance);
+        let full = self.mask_path(im_id, instance);
+        if !self.dir.join("mask_visib").is_dir() && full.exists() {
+            full
+        } else {
+            visible
+        }
+    }
+
     /// The visible part of instance `instance`: `mask_visib/{im_id:06}_{instance:06}.png`.
     pub fn mask_visib_path(&self, im_id: u32, instance: usize) -> PathBuf {
         self.dir

@@ -33,9 +33,17 @@ pub enum LabelFailure {
     /// The mask has no pixel.
     #[error("the mask is empty")]
     EmptyMask,
+    /// An input file of the instance (depth, mask) or its camera could not be read.
+    #[error("{0}")]
+    Input(String),
     /// The mask's size differs from the depth image's.
-    #[error("the mask is {mask_width}×{mask_height} but the depth image {width}×{height}")]
+    #[error(
+        "{}: the mask is {mask_width}×{mask_height} but the depth image {width}×{height}",
+        mask.display()
+    )]
     MaskSize {
+        /// The mask file.
+        mask: std::path::PathBuf,
         /// Mask columns.
         mask_width: u32,
         /// Mask rows.
@@ -75,6 +83,22 @@ pub enum LabelFailure {
         /// The object id.
         obj_id: u32,
     },
+}
+
+impl LabelFailure {
+    /// The kind of failure, without the instance's numbers (for counting failures).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Self::EmptyMask => "empty mask",
+            Self::Input(_) => "unreadable input",
+            Self::MaskSize { .. } => "mask size differs from depth",
+            Self::NoDepth => "no depth in mask",
+            Self::TooFewPoints { .. } => "too few observed points",
+            Self::Registration(_) => "registration failed",
+            Self::NoPoseAccepted { .. } => "no pose accepted",
+            Self::UnknownObject { .. } => "object without model",
+        }
+    }
 }
 
 /// The outcome of labelling one instance.

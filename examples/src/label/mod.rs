@@ -211,8 +211,8 @@ pub struct LabelSummary {
     pub labels: usize,
     /// Instances with a warning.
     pub warnings: usize,
-    /// Failed instances by reason (the error text up to its first digit or colon).
-    pub failures: BTreeMap<String, usize>,
+    /// Failed instances by kind ([`LabelFailure::kind`]).
+    pub failures: BTreeMap<&'static str, usize>,
     /// Wall-clock seconds.
     pub seconds: f64,
 }
@@ -239,10 +239,26 @@ pub fn label_dataset(
     progress: &ProgressBar,
 ) -> Result<LabelSummary, PipelineError> {
     options.validate()?;
+    if !dataset.models.is_dir() {
+        return Err(FileError::new(
+            &dataset.models,
+            "folder",
+            "missing: labelling needs the object meshes (choose the folder with --models-dir)",
+        )
+        .into());
+    }
     let started = Instant::now();
     let shard = dataset_options.shard;
-    let scene_ids: Vec<u32> = dataset
-        .scene_ids(&dataset_options.split)?
+    let all_scenes = dataset.scene_ids(&dataset_options.split)?;
+    if all_scenes.is_empty() {
+        return Err(FileError::new(
+            &dataset.root.join(&dataset_options.split),
+            "folder",
+            "no scene folders (six-digit names such as 000001)",
+        )
+        .into());
+    }
+    let scene_ids: Vec<u32> = all_scenes
         .into_iter()
         .enumerate()
         .filter(|(k, _)| k % shard.count == shard.index)
@@ -270,7 +286,7 @@ pub fn label_dataset(
             }
         }
         let cameras = read_scene_camera(&scene.camera_path())?;
-        let labelled: Vec<(u32, Vec<PseudoInstance>)> = instances
+        let labelled: Vec<(u32, Vec<Outcome>)> = instances
             .par_iter()
             .map(|(&im_id, obj_ids)| {
                 let result = match cameras.get(&im_id) {
@@ -279,37 +295,47 @@ pub fn label_dataset(
                     }
                     None => failed_image(
                         obj_ids,
-                        &format!("image {im_id} is not in scene_camera.json"),
+                        &LabelFailure::Input(format!(
+                            "{}: image {im_id} is missing",
+                            scene.camera_path().display()
+                        )),
                     ),
                 };
                 progress.inc(1);
                 (im_id, result)
             })
             .collect();
-        for instance in labelled.iter().flat_map(|(_, list)| list) {
+        for (instance, failure) in labelled.iter().flat_map(|(_, list)| list) {
             summary.instances += 1;
             summary.labels += instance.labels.len();
             summary.warnings += usize::from(instance.warning.is_some());
-            match &instance.error {
+            match failure {
                 None => summary.labelled += 1,
-                Some(error) => *summary.failures.entry(failure_kind(error)).or_default() += 1,
+                Some(kind) => *summary.failures.entry(kind).or_default() += 1,
             }
         }
         summary.images += labelled.len();
-        write_pseudo_gt(&scene.pseudo_gt_path(), &labelled.into_iter().collect())?;
+        let labelled = labelled
+            .into_iter()
+            .map(|(im_id, list)| (im_id, list.into_iter().map(|(i, _)| i).collect()))
+            .collect();
+        write_pseudo_gt(&scene.pseudo_gt_path(), &labelled)?;
     }
     summary.seconds = started.elapsed().as_secs_f64();
     Ok(summary)
 }
 
-/// The reason of a failure without its numbers (for counting).
-fn failure_kind(error: &str) -> String {
-    error
-        .split(|c: char| c.is_ascii_digit() || c == ':')
-        .next()
-        .unwrap_or(error)
-        .trim()
-        .to_string()
+/// An instance's pseudo labels and, when labelling failed, the kind of failure.
+type Outcome = (PseudoInstance, Option<&'static str>);
+
+/// The outcome of an instance whose labelling failed with `failure`.
+fn failed_instance(obj_id: u32, failure: &LabelFailure) -> Outcome {
+    let instance = PseudoInstance {
+        obj_id,
+        error: Some(failure.to_string()),
+        ..PseudoInstance::default()
+    };
+    (instance, Some(failure.kind()))
 }
 
 /// Image id → the object id of each instance, in mask order: from `scene_gt.json` (only
@@ -335,7 +361,7 @@ fn scene_instances(
         .keys()
         .map(|&im_id| {
             let count = (0..)
-                .take_while(|&k| scene.mask_visib_path(im_id, k).exists())
+                .take_while(|&k| scene.visible_mask_path(im_id, k).exists())
                 .count();
             (im_id, vec![obj_id; count])
         })
@@ -358,14 +384,10 @@ fn load_model(
 }
 
 /// Every instance of an image failed for the same reason.
-fn failed_image(obj_ids: &[u32], reason: &str) -> Vec<PseudoInstance> {
+fn failed_image(obj_ids: &[u32], failure: &LabelFailure) -> Vec<Outcome> {
     obj_ids
         .iter()
-        .map(|&obj_id| PseudoInstance {
-            obj_id,
-            error: Some(reason.to_string()),
-            ..PseudoInstance::default()
-        })
+        .map(|&obj_id| failed_instance(obj_id, failure))
         .collect()
 }
 
@@ -386,58 +408,56 @@ fn label_image(
     obj_ids: &[u32],
     models: &BTreeMap<u32, Option<Arc<ObjectModel>>>,
     options: &LabelOptions,
-) -> Vec<PseudoInstance> {
+) -> Vec<Outcome> {
     let depth_path = scene.depth_path(im_id);
     let depth = match images::read_depth(&depth_path, intrinsics.depth_scale) {
         Ok(depth) => depth,
-        Err(error) => return failed_image(obj_ids, &error.to_string()),
+        Err(error) => return failed_image(obj_ids, &LabelFailure::Input(error.to_string())),
     };
     let camera = match intrinsics.camera(depth.width, depth.height) {
         Ok(camera) => camera.camera,
-        Err(error) => return failed_image(obj_ids, &error.to_string()),
+        Err(error) => return failed_image(obj_ids, &LabelFailure::Input(error.to_string())),
     };
     obj_ids
         .iter()
         .enumerate()
         .map(|(k, &obj_id)| {
-            let failed = |error: String| PseudoInstance {
-                obj_id,
-                error: Some(error),
-                ..PseudoInstance::default()
-            };
             let Some(model) = models.get(&obj_id).and_then(Option::as_ref) else {
-                return failed(LabelFailure::UnknownObject { obj_id }.to_string());
+                return failed_instance(obj_id, &LabelFailure::UnknownObject { obj_id });
             };
-            let mask = match images::read_mask(&scene.mask_visib_path(im_id, k)) {
+            let mask_path = scene.visible_mask_path(im_id, k);
+            let mask = match images::read_mask(&mask_path) {
                 Ok(mask) => mask,
-                Err(error) => return failed(error.to_string()),
+                Err(error) => {
+                    return failed_instance(obj_id, &LabelFailure::Input(error.to_string()));
+                }
             };
             if (mask.width, mask.height) != (depth.width, depth.height) {
-                return failed(
-                    LabelFailure::MaskSize {
-                        mask_width: mask.width,
-                        mask_height: mask.height,
-                        width: depth.width,
-                        height: depth.height,
-                    }
-                    .to_string(),
-                );
+                let failure = LabelFailure::MaskSize {
+                    mask: mask_path,
+                    mask_width: mask.width,
+                    mask_height: mask.height,
+                    width: depth.width,
+                    height: depth.height,
+                };
+                return failed_instance(obj_id, &failure);
             }
             let Some(observation) = Observation::new(camera, &depth.pixels, &mask.pixels) else {
-                return failed(LabelFailure::EmptyMask.to_string());
+                return failed_instance(obj_id, &LabelFailure::EmptyMask);
             };
             let seed = instance_seed(options.seed, scene.id, im_id, k);
             let found = label_instance(model, &observation, options, seed);
-            let (labels, error) = match found.labels {
-                Ok(labels) => (labels, None),
-                Err(failure) => (Vec::new(), Some(failure.to_string())),
+            let (labels, error, kind) = match found.labels {
+                Ok(labels) => (labels, None, None),
+                Err(failure) => (Vec::new(), Some(failure.to_string()), Some(failure.kind())),
             };
-            PseudoInstance {
+            let instance = PseudoInstance {
                 obj_id,
                 labels,
                 error,
                 warning: found.warning,
-            }
+            };
+            (instance, kind)
         })
         .collect()
 }

@@ -8,11 +8,14 @@
 //!
 //! Frames are rendered in parallel; frame `i` of scene `s` draws from ChaCha8 stream
 //! `s · 2³² + i` of the seed, so a dataset is the same at any thread count. A scene is complete
-//! once its `scene_gt_info.json` exists (written last), and a rerun skips complete scenes.
+//! once its `scene_gt_info.json` exists (written last), and a rerun skips complete scenes. The
+//! options that decide a split's frames are recorded in its `synth_options.json` (written before
+//! the first frame), and a rerun with other options is refused rather than mixed in.
 mod frame;
 mod objects;
 
 use std::collections::BTreeMap;
+use std::path::{Component, Path};
 use std::time::Instant;
 
 use depth_render::{DepthNoise, Material};
@@ -158,10 +161,107 @@ pub fn read_dataset_info(dataset: &BopDataset) -> Result<Option<DatasetInfo>, Fi
     Ok(Some(DatasetInfo { names, variant }))
 }
 
+/// The file in a split's folder that records the options its frames were generated with.
+pub const SYNTH_OPTIONS_FILE: &str = "synth_options.json";
+
+/// `synth_options.json`: everything that decides a split's scenes and frames (object ids and
+/// sizes, frames, scene layout, seed, camera, views, distractors, noise), so that a rerun with
+/// other options is refused rather than completed into a mixture. Numbers pass through JSON text
+/// once, so that they compare equal to what a file read back holds.
+fn split_options(objects: &[SynthObject], options: &SynthOptions) -> Value {
+    let objects: Vec<Value> = objects
+        .iter()
+        .map(|object| {
+            let (low, high) = object.mesh.bounds();
+            // Micrometres are plenty to tell a mesh at another scale.
+            let size = (high - low).map(|v| (f64::from(v) * 1e6).round() / 1e6);
+            json!({"name": object.name, "size_m": [size.x, size.y, size.z]})
+        })
+        .collect();
+    let camera = &options.camera;
+    let noise = options.noise.map(|noise| {
+        json!({
+            "sigma_base": noise.sigma_base, "sigma_growth": noise.sigma_growth,
+            "sigma_reference_depth": noise.sigma_reference_depth,
+            "quantisation": noise.quantisation, "edge_threshold": noise.edge_threshold,
+            "edge_dropout": noise.edge_dropout,
+        })
+    });
+    let value = json!({
+        "generator": "ipdf synth",
+        "objects": objects,
+        "variant": options.variant.name(),
+        "frames": options.frames,
+        "frames_per_scene": options.frames_per_scene,
+        "seed": options.seed,
+        "camera": {
+            "fx": camera.camera.fx, "fy": camera.camera.fy, "cx": camera.camera.cx,
+            "cy": camera.camera.cy, "width": camera.camera.width, "height": camera.camera.height,
+            "depth_scale": camera.depth_scale,
+        },
+        "elevation_deg": [options.view.elevation_deg.0, options.view.elevation_deg.1],
+        "distance": [options.view.distance.0, options.view.distance.1],
+        "table_offset": options.view.table_offset,
+        "distractors": options.distractors,
+        "noise": noise,
+    });
+    serde_json::from_str(&value.to_string()).unwrap_or(value)
+}
+
+/// Refuses a split whose `synth_options.json` records other options than `expected`, naming
+/// the first option that differs. A split without the file (new, or from an older version) is
+/// accepted.
+fn check_split_options(path: &Path, expected: &Value) -> Result<(), FileError> {
+    if !path.exists() {
+        return Ok(());
+    }
+    let recorded = read_json(path)?;
+    let Some(recorded) = recorded.as_object() else {
+        return Err(FileError::new(path, "file", "not a JSON object"));
+    };
+    let Some(expected) = expected.as_object() else {
+        return Ok(());
+    };
+    for (key, value) in expected {
+        let found = recorded.get(key).unwrap_or(&Value::Null);
+        if found != value {
+            return Err(FileError::new(
+                path,
+                key,
+                format!(
+                    "the split was generated with {found}, this run asks for {value}; rerun with \
+                     the same options to complete it, or write to another folder"
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Refuses a split name that is not one plain folder name (`train`, `val`): no separators,
+/// `.`, `..` or absolute paths, which would write outside the dataset.
+fn check_split_name(split: &str) -> Result<(), PipelineError> {
+    let mut components = Path::new(split).components();
+    let plain = matches!(
+        (components.next(), components.next()),
+        (Some(Component::Normal(name)), None) if name == split
+    );
+    if plain {
+        Ok(())
+    } else {
+        Err(PipelineError::option(
+            "split",
+            format!("{split:?} is not a plain folder name (like \"train\" or \"val\")"),
+        ))
+    }
+}
+
 /// Writes the models, `models_info.json`, `camera.json` and `dataset_info.json` of `objects`
-/// (object ids from 1, in order), refusing a folder that holds another dataset.
+/// (object ids from 1, in order) and the split's `synth_options.json`, refusing a folder that
+/// holds another dataset or a split generated with other options.
 fn write_models(
     dataset: &BopDataset,
+    split: &str,
     objects: &[SynthObject],
     options: &SynthOptions,
 ) -> Result<(), PipelineError> {
@@ -175,6 +275,9 @@ fn write_models(
         )
         .into());
     }
+    let options_path = dataset.root.join(split).join(SYNTH_OPTIONS_FILE);
+    let recorded_options = split_options(objects, options);
+    check_split_options(&options_path, &recorded_options)?;
     let mut models = BTreeMap::new();
     for (i, object) in objects.iter().enumerate() {
         let obj_id = i as u32 + 1;
@@ -193,12 +296,17 @@ fn write_models(
     };
     write(&dataset.root.join("camera.json"), &camera_json)?;
     write(&info_path, &info)?;
+    write(&options_path, &recorded_options)?;
     Ok(())
 }
 
 /// Renders `options.frames` frames of each of `objects` into `split` of `dataset` (object ids
 /// from 1 in the order given; object `k`'s frames fill consecutive scenes), skipping complete
 /// scenes. `progress` advances by one per frame.
+///
+/// Errors: no objects, no frames, a `split` that is not a plain folder name, a folder holding
+/// another dataset or a split generated with other options (see [`SYNTH_OPTIONS_FILE`]),
+/// rendering and I/O.
 pub fn synthesize(
     dataset: &BopDataset,
     split: &str,
@@ -215,8 +323,9 @@ pub fn synthesize(
             "frames and frames per scene must be at least 1",
         ));
     }
+    check_split_name(split)?;
     let started = Instant::now();
-    write_models(dataset, objects, options)?;
+    write_models(dataset, split, objects, options)?;
     let scenes_per_object = options.frames.div_ceil(options.frames_per_scene);
     let mut rendered = 0;
     for (k, object) in objects.iter().enumerate() {

@@ -1,0 +1,168 @@
+//! Reruns into existing output folders through the real binary: `ipdf synth` and `ipdf
+//! pipeline` resume an identical run and refuse one whose options differ, naming the option;
+//! plus the global flags' and `grid`'s argument checks.
+mod common;
+
+use common::{assert_fails, ipdf, ipdf_json, s};
+
+#[test]
+fn a_synth_rerun_with_other_options_is_refused_and_an_identical_one_resumes() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    let args = |frames: &'static str, extra: &[&'static str]| {
+        let mut words = vec!["synth", "--out", s(&data), "--objects", "can,box"];
+        words.extend(["--frames", frames]);
+        if !extra.contains(&"--frames-per-scene") {
+            words.extend(["--frames-per-scene", "2"]);
+        }
+        words.extend_from_slice(extra);
+        words
+    };
+    let first = ipdf_json(&args("2", &[]));
+    assert_eq!(
+        (&first["frames"], &first["rendered"]),
+        (&4.into(), &4.into())
+    );
+    // An interrupted run: the box's scene lost its last file, so it is incomplete.
+    let box_scene = data.join("train/000001");
+    std::fs::remove_file(box_scene.join("scene_gt_info.json")).unwrap();
+    let resumed = ipdf_json(&args("2", &[]));
+    assert_eq!(
+        (&resumed["frames"], &resumed["rendered"]),
+        (&4.into(), &2.into())
+    );
+    assert!(box_scene.join("scene_gt_info.json").exists());
+    let again = ipdf_json(&args("2", &[]));
+    assert_eq!(again["rendered"], 0);
+
+    for (extra, option) in [
+        (args("3", &[]), "frames"),
+        (args("2", &["--frames-per-scene", "1"]), "frames_per_scene"),
+        (args("2", &["--seed", "7"]), "seed"),
+        (args("2", &["--distractors", "1"]), "distractors"),
+        (args("2", &["--elevation", "20", "80"]), "elevation_deg"),
+    ] {
+        assert_fails(&extra, option);
+        assert_fails(&extra, "train/synth_options.json");
+    }
+    // Nothing was rendered by the refused runs: scenes 0 and 1 only.
+    let scenes = std::fs::read_dir(data.join("train")).unwrap().count();
+    assert_eq!(scenes, 3, "two scenes and synth_options.json");
+    // Another split is another set of options.
+    let val = ipdf_json(&[
+        "synth",
+        "--out",
+        s(&data),
+        "--objects",
+        "can,box",
+        "--frames",
+        "1",
+        "--split",
+        "val",
+        "--seed",
+        "1",
+    ]);
+    assert_eq!(val["rendered"], 2);
+}
+
+#[test]
+fn synth_refuses_a_split_that_is_not_a_plain_folder_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("a/b");
+    for split in ["../../escape", "/abs", "a/b", "..", ".", ""] {
+        assert_fails(
+            &[
+                "synth",
+                "--out",
+                s(&data),
+                "--objects",
+                "box",
+                "--frames",
+                "1",
+                "--split",
+                split,
+            ],
+            "split",
+        );
+    }
+    assert!(!dir.path().join("escape").exists());
+    assert!(!data.exists(), "nothing written");
+}
+
+#[test]
+fn a_pipeline_rerun_with_other_settings_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    // A run folder as a pipeline run leaves it when it starts: its recorded settings.
+    std::fs::create_dir_all(&out).unwrap();
+    let settings = |frames: &'static str| {
+        vec![
+            "pipeline",
+            "--out",
+            s(&out),
+            "--frames",
+            frames,
+            "--val-frames",
+            "1",
+            "--texture-frames",
+            "1",
+            "--epochs",
+            "1",
+            "--steps-per-epoch",
+            "1",
+        ]
+    };
+    // A refused run stops before the first stage; an accepted one records its settings first:
+    // let one start with a file in the way of the synth stage, so it fails right after that.
+    std::fs::write(out.join("data"), "in the way").unwrap();
+    let started = ipdf(&settings("2"));
+    assert!(!started.status.success());
+    let config: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("pipeline_config.json")).unwrap()).unwrap();
+    assert_eq!(config["frames_per_object"], 2);
+    assert_eq!(config["epochs"], 1);
+    assert_fails(&settings("5"), "frames_per_object (--frames)");
+    let mut seeded = settings("2");
+    seeded.extend(["--seed", "3"]);
+    assert_fails(&seeded, "seed");
+    let mut paper = settings("2");
+    paper.extend(["--preset", "paper"]);
+    assert_fails(&paper, "preset");
+    // The identical rerun gets past the check (and fails at the same place as before).
+    let again = ipdf(&settings("2"));
+    let stderr = String::from_utf8_lossy(&again.stderr);
+    assert!(!again.status.success());
+    assert!(!stderr.contains("pipeline_config.json"), "{stderr}");
+}
+
+#[test]
+fn global_flags_and_grid_outputs_are_checked() {
+    // No subcommand: the usage, not an error about the program.
+    let out = ipdf(&[]);
+    assert!(!out.status.success());
+    let text = String::from_utf8_lossy(&out.stderr);
+    assert!(text.contains("Usage: ipdf"), "{text}");
+    assert!(text.contains("grid"), "{text}");
+
+    let dir = tempfile::tempdir().unwrap();
+    let npy = dir.path().join("g.npy");
+    assert_fails(
+        &[
+            "grid",
+            "--level",
+            "0",
+            "--out",
+            s(&npy),
+            "--threads",
+            "100000",
+        ],
+        "--threads",
+    );
+    let summary = ipdf_json(&["grid", "--level", "0", "--out", s(&npy), "--threads", "2"]);
+    assert_eq!(summary["count"], 72);
+    for name in ["g.json", "g", "g.npy.tmp"] {
+        let path = dir.path().join(name);
+        assert_fails(&["grid", "--level", "0", "--out", s(&path)], ".npy");
+        assert!(!path.exists(), "{name} written");
+    }
+}
