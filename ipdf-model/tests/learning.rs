@@ -198,9 +198,10 @@ fn symmetry_sets_are_learned_from_set_labels_and_not_from_single_labels() {
             // A concentrated density: the bounds.
             assert!(gaps.llh < 0.02 && gaps.maad < 0.2, "{name}: {gaps:?}");
         } else {
-            // 400 steps leave this model's mass spread over 24 blurred peaks with ridges
-            // narrower than a level-2 cell that no level-2 centre sees (≈ 0.2 nats of the
-            // normaliser are missed); the bound only catches a broken hierarchy.
+            // 400 steps leave 5–15% of this model's mass in peaks inside level-2 cells whose
+            // centres and siblings barely see them (≈ 0.13 nats of the normaliser are missed;
+            // on the demo's trained models the gap is ≤ 0.005, see the README); the bound only
+            // catches a broken hierarchy.
             assert!(gaps.llh < 0.5 && gaps.maad < 2.0, "{name}: {gaps:?}");
             assert!(gaps.argmax_error < 10.0, "{name}: {gaps:?}");
         }
