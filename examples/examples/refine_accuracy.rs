@@ -12,7 +12,7 @@ use std::time::Instant;
 
 use anyhow::Result;
 use examples::run_info::{RUN_FILE, RunInfo};
-use examples::training_data::{ExampleOptions, LabelSource, load_examples, to_unit_floats};
+use examples::training_data::{ExampleOptions, load_examples, to_unit_floats};
 use ipdf_model::{CellMasses, ImplicitPdf, Predictor, RefineOptions};
 use metrics::{Distribution, GridCell, maad};
 
@@ -42,17 +42,9 @@ fn main() -> Result<()> {
     for run in runs {
         let info = RunInfo::read(&run)?;
         let model = ImplicitPdf::load(&run, ipdf_model::default_device())?;
-        let examples = load_examples(
-            &info.dataset(None)?,
-            &ExampleOptions {
-                split: "val".into(),
-                obj_id: info.obj_id,
-                labels: LabelSource::Single,
-                input_size: model.config().input_size as usize,
-                min_visible_fraction: 0.1,
-                continuous_steps: 1,
-            },
-        )?;
+        let size = model.config().input_size as usize;
+        let options = ExampleOptions::evaluation("val", info.obj_id, size);
+        let examples = load_examples(&info.dataset(None)?, &options)?;
         let Some(truths) = &examples.truth_sets else {
             continue;
         };

@@ -57,6 +57,22 @@ pub struct ExampleOptions {
     pub continuous_steps: usize,
 }
 
+impl ExampleOptions {
+    /// The instances scored against their ground truth (`ipdf eval`): every instance of
+    /// `obj_id` in `split` at least 10% visible, single labels (the ground-truth sets are
+    /// [`Examples::truth_sets`]).
+    pub fn evaluation(split: &str, obj_id: u32, input_size: usize) -> Self {
+        Self {
+            split: split.to_string(),
+            obj_id,
+            labels: LabelSource::Single,
+            input_size,
+            min_visible_fraction: 0.1,
+            continuous_steps: 1,
+        }
+    }
+}
+
 /// One instance's place in the dataset.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct InstanceRef {

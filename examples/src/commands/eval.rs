@@ -7,7 +7,7 @@ use examples::atomic::write_json;
 use examples::evaluation::evaluate;
 use examples::progress::bar;
 use examples::run_info::RunInfo;
-use examples::training_data::{ExampleOptions, LabelSource, load_examples};
+use examples::training_data::{ExampleOptions, load_examples};
 use ipdf_model::{ImplicitPdf, default_device};
 use serde_json::json;
 
@@ -43,17 +43,9 @@ pub fn run(args: &EvalArgs) -> Result<serde_json::Value> {
     }
     let dataset = info.dataset(args.dataset.as_deref())?;
     let model = ImplicitPdf::load(&args.checkpoint, default_device())?;
-    let examples = load_examples(
-        &dataset,
-        &ExampleOptions {
-            split: args.split.clone(),
-            obj_id: info.obj_id,
-            labels: LabelSource::Single,
-            input_size: model.config().input_size as usize,
-            min_visible_fraction: 0.1,
-            continuous_steps: 1,
-        },
-    )?;
+    let size = model.config().input_size as usize;
+    let options = ExampleOptions::evaluation(&args.split, info.obj_id, size);
+    let examples = load_examples(&dataset, &options)?;
     let progress = bar(examples.instances.len() as u64, "images");
     let scores = evaluate(&model, &examples, args.level, &progress)?;
     progress.finish_and_clear();
