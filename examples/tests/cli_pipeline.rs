@@ -202,6 +202,10 @@ fn a_miniature_pipeline_writes_every_artefact() {
     );
     assert_fails(&["eval", "--checkpoint", s(dir.path())], "run.json");
     assert_fails(
+        &["eval", "--checkpoint", s(&run), "--models-dir", "no_models"],
+        "no_models",
+    );
+    assert_fails(
         &[
             "predict",
             "--checkpoint",

@@ -34,6 +34,14 @@ fn a_synth_rerun_with_other_options_is_refused_and_an_identical_one_resumes() {
     assert!(box_scene.join("scene_gt_info.json").exists());
     let again = ipdf_json(&args("2", &[]));
     assert_eq!(again["rendered"], 0);
+    // A damaged record of the options is refused, naming the file, and left as it was.
+    let record = data.join("train/synth_options.json");
+    let kept = std::fs::read(&record).unwrap();
+    for damaged in ["{not json", "[1, 2]"] {
+        std::fs::write(&record, damaged).unwrap();
+        assert_fails(&args("2", &[]), "synth_options.json");
+    }
+    std::fs::write(&record, kept).unwrap();
 
     for (extra, option) in [
         (args("3", &[]), "frames"),
@@ -133,6 +141,9 @@ fn a_pipeline_rerun_with_other_settings_is_refused() {
     let stderr = String::from_utf8_lossy(&again.stderr);
     assert!(!again.status.success());
     assert!(!stderr.contains("pipeline_config.json"), "{stderr}");
+    // A recorded settings file that is not a JSON object is refused, naming it.
+    std::fs::write(out.join("pipeline_config.json"), "[1, 2]").unwrap();
+    assert_fails(&settings("2"), "pipeline_config.json");
 }
 
 #[test]
