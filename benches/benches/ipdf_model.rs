@@ -15,6 +15,9 @@ use nalgebra::UnitQuaternion;
 use so3_grid::random_rotations;
 use tch::{Device, Kind, Tensor};
 
+// As the `ipdf` binary: jemalloc keeping freed pages (see examples/src/allocator.rs).
+examples::keep_freed_pages_allocator!();
+
 const BATCH: i64 = 32;
 const SIZE: i64 = 96;
 

@@ -11,7 +11,7 @@ use examples::evaluation::evaluate;
 use examples::synth::{ObjectKind, SynthObject};
 use examples::training_data::rendered_examples;
 use indicatif::ProgressBar;
-use ipdf_model::ImplicitPdf;
+use ipdf_model::{ImplicitPdf, RefineOptions};
 
 fn main() -> Result<()> {
     let run = PathBuf::from(
@@ -24,7 +24,13 @@ fn main() -> Result<()> {
     let cube = SynthObject::built_in(ObjectKind::Cube)?;
     let size = model.config().input_size as usize;
     let examples = rendered_examples(&cube, 8, size, 99)?;
-    let scores = evaluate(&model, &examples, 3, &ProgressBar::hidden())?;
+    // Level 2 refined hierarchically to level 4 (as `ipdf eval` does by default).
+    let scores = evaluate(
+        &model,
+        &examples,
+        &RefineOptions::to_level(4),
+        &ProgressBar::hidden(),
+    )?;
     println!(
         "{} images: LLH {:.2} (uniform: −2.29), MAAD {:.1}°, Recall MAAD {:.1}°",
         scores.images, scores.llh, scores.maad_deg, scores.recall_maad_deg

@@ -11,18 +11,11 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Result;
+use examples::evaluation::cell_distribution;
 use examples::run_info::{RUN_FILE, RunInfo};
 use examples::training_data::{ExampleOptions, load_examples, to_unit_floats};
-use ipdf_model::{CellMasses, ImplicitPdf, Predictor, RefineOptions};
-use metrics::{Distribution, GridCell, maad};
-
-fn distribution(masses: &CellMasses) -> Result<Distribution> {
-    let cells = masses.cells.iter();
-    let cells = cells
-        .map(|&(level, index)| GridCell { level, index })
-        .collect();
-    Ok(Distribution::from_cells(cells, masses.masses.clone())?)
-}
+use ipdf_model::{ImplicitPdf, Predictor, RefineOptions};
+use metrics::maad;
 
 fn main() -> Result<()> {
     let mut args = std::env::args().skip(1);
@@ -34,11 +27,7 @@ fn main() -> Result<()> {
     };
     let mut runs: Vec<PathBuf> = glob_runs(&models)?;
     runs.sort();
-    let dense = RefineOptions {
-        start_level: 4,
-        max_queries: usize::MAX,
-        ..RefineOptions::default()
-    };
+    let dense = RefineOptions::dense(4);
     for run in runs {
         let info = RunInfo::read(&run)?;
         let model = ImplicitPdf::load(&run, ipdf_model::default_device())?;
@@ -62,7 +51,7 @@ fn main() -> Result<()> {
             let dense_llh = mean(predictor.log_densities(&crop, truth, &full)?);
             let refined_llh = mean(predictor.log_densities(&crop, truth, &refined)?);
             llh_gap += (refined_llh - dense_llh).abs();
-            let (full, refined) = (distribution(&full)?, distribution(&refined)?);
+            let (full, refined) = (cell_distribution(&full)?, cell_distribution(&refined)?);
             maad_gap += (maad(&refined, truth)? - maad(&full, truth)?).abs();
         }
         let n = count.max(1) as f64;

@@ -1,11 +1,11 @@
 //! The paper's scores of a trained model on examples with ground truth: for each crop, the
-//! normalised distribution on a dense grid, then LLH (mean log-density over the ground-truth
-//! symmetry set), MAAD (expected distance of a sample to the nearest ground-truth rotation) and
-//! Recall MAAD (mean distance of each ground-truth rotation to the nearest predicted one), all
-//! from the `metrics` crate, averaged over crops.
+//! normalised distribution on the grid (refined hierarchically, or dense), then LLH (mean
+//! log-density over the ground-truth symmetry set), MAAD (expected distance of a sample to the
+//! nearest ground-truth rotation) and Recall MAAD (mean distance of each ground-truth rotation
+//! to the nearest predicted one), averaged over crops.
 use indicatif::ProgressBar;
-use ipdf_model::{ImplicitPdf, Predictor};
-use metrics::{Distribution, RECALL_THRESHOLD, llh, maad, recall_maad};
+use ipdf_model::{CellMasses, ImplicitPdf, Predictor, RefineOptions};
+use metrics::{Distribution, GridCell, RECALL_THRESHOLD, maad, recall_maad};
 use so3_grid::Grid;
 
 use crate::PipelineError;
@@ -23,14 +23,20 @@ pub struct Scores {
     pub maad_deg: f64,
     /// Recall mean absolute angular deviation, degrees.
     pub recall_maad_deg: f64,
+    /// The most network queries one crop took.
+    pub queries_per_image: usize,
 }
 
-/// Scores `model` on every crop of `examples` with the dense `level` grid (4: 294,912 cells);
-/// `progress` advances by one per crop. Fails when the examples have no ground truth.
+/// Scores `model` on every crop of `examples`, its distribution evaluated on the cells
+/// `grid` describes ([`RefineOptions::to_level`] for the hierarchical evaluation,
+/// [`RefineOptions::dense`] for every cell of a level); `progress` advances by one per crop.
+/// LLH is the reference implementation's: the density `exp(F(R) − ln Z)` at each ground-truth
+/// rotation itself, `Z` from the grid; MAAD and Recall MAAD come from the `metrics` crate on
+/// the cells' masses. Fails when the examples have no ground truth.
 pub fn evaluate(
     model: &ImplicitPdf,
     examples: &Examples,
-    level: u8,
+    grid: &RefineOptions,
     progress: &ProgressBar,
 ) -> Result<Scores, PipelineError> {
     let Some(truths) = &examples.truth_sets else {
@@ -39,16 +45,17 @@ pub fn evaluate(
             "evaluation needs the split's scene_gt.json",
         ));
     };
-    let grid = Grid::new(level).map_err(|e| PipelineError::option("level", e.to_string()))?;
     let mut predictor = Predictor::new(model);
-    let (mut sum_llh, mut sum_maad, mut sum_recall) = (0.0, 0.0, 0.0);
+    let (mut sum_llh, mut sum_maad, mut sum_recall, mut queries) = (0.0, 0.0, 0.0, 0);
     for (i, truth) in truths.iter().enumerate() {
         let crop = to_unit_floats(&examples.crops.get(i as i64));
-        let masses = predictor.probabilities(&crop, level)?;
-        let distribution = Distribution::dense(&grid, masses)?;
-        sum_llh += llh(&distribution, truth)?;
+        let masses = predictor.hierarchical(&crop, grid)?;
+        let densities = predictor.log_densities(&crop, truth, &masses)?;
+        sum_llh += densities.iter().sum::<f64>() / densities.len().max(1) as f64;
+        let distribution = cell_distribution(&masses)?;
         sum_maad += maad(&distribution, truth)?;
         sum_recall += recall_maad(&distribution, truth, RECALL_THRESHOLD)?;
+        queries = queries.max(masses.queries);
         progress.inc(1);
     }
     let n = truths.len().max(1) as f64;
@@ -57,7 +64,18 @@ pub fn evaluate(
         llh: sum_llh / n,
         maad_deg: sum_maad / n,
         recall_maad_deg: sum_recall / n,
+        queries_per_image: queries,
     })
+}
+
+/// The cells and masses of a (hierarchical or dense) evaluation as a `metrics` distribution.
+pub fn cell_distribution(masses: &CellMasses) -> Result<Distribution, PipelineError> {
+    let cells = masses
+        .cells
+        .iter()
+        .map(|&(level, index)| GridCell { level, index })
+        .collect();
+    Ok(Distribution::from_cells(cells, masses.masses.clone())?)
 }
 
 /// The Implicit-PDF figure of `model`'s distribution for an 8-bit crop (`[3, S, S]`) on the

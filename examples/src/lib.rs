@@ -4,6 +4,7 @@
 //! ([`training_data`], [`evaluation`], [`run_info`]), figures ([`plots`]), `.npy` output and
 //! atomic file writes. The commands themselves live in `src/commands/`.
 
+pub mod allocator;
 pub mod atomic;
 pub mod bop;
 pub mod dataset;

@@ -7,6 +7,8 @@ use clap::{Parser, Subcommand};
 
 mod commands;
 
+examples::keep_freed_pages_allocator!();
+
 /// Learn the full set of symmetric orientations of an object from RGB-D images and its mesh,
 /// without pose labels.
 #[derive(Debug, Parser)]

@@ -126,6 +126,30 @@ fn a_miniature_pipeline_writes_every_artefact() {
         (scores["object"].as_str(), scores["images"].as_u64()),
         (Some("box"), Some(2))
     );
+    // Level 3 refined from level 2 within its budget, against every level-3 cell.
+    let refined = ipdf_json(&["eval", "--checkpoint", s(&run), "--level", "3"]);
+    let dense = ipdf_json(&["eval", "--checkpoint", s(&run), "--level", "3", "--dense"]);
+    assert_eq!(refined["evaluation"], "hierarchical");
+    assert!(
+        refined["queries_per_image"].as_u64().unwrap() <= 9_472,
+        "{refined}"
+    );
+    assert_eq!(
+        (
+            dense["evaluation"].as_str(),
+            dense["queries_per_image"].as_u64()
+        ),
+        (Some("dense"), Some(36_864))
+    );
+    let gap = |key: &str| (refined[key].as_f64().unwrap() - dense[key].as_f64().unwrap()).abs();
+    assert!(
+        gap("llh") < 0.02 && gap("maad_deg") < 0.2,
+        "{refined} {dense}"
+    );
+    assert_fails(
+        &["eval", "--checkpoint", s(&run), "--level", "6", "--dense"],
+        "--dense goes up to level 5",
+    );
     let figure = dir.path().join("viz.png");
     ipdf_json(&[
         "viz",

@@ -52,18 +52,45 @@ pub struct RefineOptions {
 impl Default for RefineOptions {
     /// Level 2 to level 4 until 99.99% of the mass is at level 4, in at most 14,336 queries
     /// (4,608 for level 2, then 1,216 refined cells): 20.6× fewer than the 294,912 of dense
-    /// level 4.
+    /// level 4. The same as [`RefineOptions::to_level`]`(4)`.
     fn default() -> Self {
-        Self {
-            start_level: 2,
-            level: 4,
-            keep_mass: 0.9999,
-            max_queries: 14_336,
-        }
+        Self::to_level(4)
     }
 }
 
 impl RefineOptions {
+    /// Level 2 refined down to `level` until 99.99% of the mass is there, in at most
+    /// `4,608 + 4,864 · (level − 2)` queries (608 refined cells per level below 2: the mass of
+    /// a trained model sits in about as many cells at every level). Levels 0–2 are evaluated
+    /// densely.
+    ///
+    /// ```
+    /// use ipdf_model::RefineOptions;
+    /// assert_eq!(RefineOptions::to_level(4).max_queries, 14_336);
+    /// assert_eq!(RefineOptions::to_level(5).max_queries, 19_200);
+    /// ```
+    pub fn to_level(level: u8) -> Self {
+        let start_level = level.min(2);
+        Self {
+            start_level,
+            level,
+            keep_mass: 0.9999,
+            max_queries: cell_count(start_level) as usize
+                + 4_864 * usize::from(level - start_level),
+        }
+    }
+
+    /// Every cell of the `level` grid (dense up to level 4; from level 4 down for finer ones):
+    /// the reference the hierarchical evaluation approximates.
+    pub fn dense(level: u8) -> Self {
+        Self {
+            start_level: level.min(4),
+            level,
+            keep_mass: 1.0,
+            max_queries: usize::MAX,
+        }
+    }
+
     /// Checks levels and budgets.
     pub fn validate(&self) -> Result<(), ModelError> {
         if self.start_level > self.level || self.level > MAX_LEVEL {

@@ -26,7 +26,7 @@ use super::{eval, label, synth, train};
 /// A size of run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Preset {
-    /// Minutes on a laptop CPU: 300 training frames per object, a small CNN on 48-pixel crops.
+    /// Minutes on a laptop CPU: 900 training frames per object, a small CNN on 48-pixel crops.
     Quick,
     /// The paper's scale (GPU advised): 20,000 frames per variant, ResNet-18 on 224-pixel crops,
     /// 50 epochs of 200 steps of 64; with and without occlusion, and two more backbones.
@@ -61,18 +61,18 @@ impl Preset {
     fn plan(self) -> Plan {
         match self {
             Self::Quick => Plan {
-                frames: 300,
-                val_frames: 20,
+                frames: 900,
+                val_frames: 50,
                 texture_frames: 20,
                 encoder: "small-cnn",
                 input_size: 48,
                 head: "128,128",
-                epochs: 8,
+                epochs: 16,
                 steps_per_epoch: 50,
                 batch_size: 16,
                 learning_rate: 2e-3,
                 query_level: 1,
-                eval_level: 3,
+                eval_level: 4,
                 occlusion: &[false],
                 backbones: &[],
             },
@@ -599,7 +599,7 @@ fn report_markdown(report: &Value, figures: &[(&ModelRun, String)]) -> String {
     let mut text = format!(
         "# ipdf-rs pipeline report ({} preset)\n\nTrained on the uniform-colour dataset ({} training and {} validation frames per object); \
          encoder {} on {} px crops, {} epochs × {} steps × {} images; scored on the validation split on the level-{} grid \
-         against each instance's full ground-truth symmetry set.\n\n## Results by type of ground truth and object\n\n",
+         (level 2 refined hierarchically; LLH at the ground-truth rotations themselves) against each instance's full ground-truth symmetry set.\n\n## Results by type of ground truth and object\n\n",
         config["preset"].as_str().unwrap_or(""),
         config["frames_per_object"],
         config["val_frames_per_object"],
