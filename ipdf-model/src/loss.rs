@@ -42,8 +42,8 @@ impl QuerySampling {
 pub enum LabelLoss {
     /// One label drawn from the set per image per step; its NLL.
     OneOfSet,
-    /// Every label of the set is queried; the mean of their NLLs under the one normaliser of the
-    /// step's queries (which hold one of them exactly).
+    /// Every label of the set is queried; the mean of their NLLs, each label taking the place
+    /// of the first of the step's queries in its own normaliser (see [`set_nll`]).
     WholeSet,
 }
 
@@ -111,22 +111,32 @@ pub(crate) fn queries_through(queries: &Tensor, labels: &Tensor) -> Tensor {
 const NEGLIGIBLE_LOG_RATIO: f64 = 50.0;
 
 /// The mean negative log-likelihood of labelled rotations (Murphy et al. 2021, eq. 4 with the
-/// set extension):
-/// `−ln p(R_bk | I_b) = −F(R_bk, I_b) + logsumexp_n F(Q_bn, I_b) − ln(N / π²)`,
+/// set extension). Each label `R_bk` is scored as the reference scores its one ground truth:
+/// it takes the place of the first query, so that it sits among the other `N − 1`,
+/// `−ln p(R_bk | I_b) = −F(R_bk, I_b) + ln(e^{F(R_bk, I_b)} + Σ_{n≥1} e^{F(Q_bn, I_b)}) − ln(N / π²)`,
 /// averaged over the valid labels of each image (`label_mask`, 1 or 0), then over images.
+/// Every label is in its own normaliser, so no label's density can exceed `N / π²`: a peak at
+/// a label the grid misses raises the normaliser with it instead of rewarding over-confidence
+/// (as it would if only the first label were among the queries), and the labels of a dense set
+/// (a continuous symmetry) do not crowd one another out of it.
 ///
 /// `query_scores`: `[B, N]`, `F` at the step's `N` queries (equivolumetric, so each stands for
-/// volume `π² / N`); `label_scores`: `[B, K]`, `F` at the labels.
+/// volume `π² / N`; the first is where the first label goes); `label_scores`: `[B, K]`, `F` at
+/// the labels.
 pub fn set_nll(query_scores: &Tensor, label_scores: &Tensor, label_mask: &Tensor) -> Tensor {
-    let count = query_scores.size()[1] as f64;
-    let log_volume = (count / std::f64::consts::PI.powi(2)).ln();
-    // Scores more than `NEGLIGIBLE_LOG_RATIO` below an image's best add less than N·e⁻⁵⁰ to
-    // the normaliser: clamping them (with no gradient) changes the loss by under 1e-18 and keeps
-    // the softmax's backward pass out of subnormal floats, which are ~100× slower on CPUs.
-    let best = query_scores.amax([1], true).detach();
-    let clamped = query_scores.maximum(&(best - NEGLIGIBLE_LOG_RATIO));
-    let log_normaliser = clamped.logsumexp([1], true);
-    let log_density = label_scores - log_normaliser + log_volume;
+    let count = query_scores.size()[1];
+    let log_volume = (count as f64 / std::f64::consts::PI.powi(2)).ln();
+    let others = query_scores.narrow(1, 1, count - 1);
+    // Scores more than `NEGLIGIBLE_LOG_RATIO` below the best of the other queries add less
+    // than N·e⁻⁵⁰ to their sum: clamping them (with no gradient) changes the loss by under 1e-18
+    // and keeps the softmax's backward pass out of subnormal floats, ~100× slower on CPUs.
+    let best = others.amax([1], true).detach();
+    let log_others = others
+        .maximum(&(best - NEGLIGIBLE_LOG_RATIO))
+        .logsumexp([1], true); // [B, 1]
+    let log_normalisers = Tensor::stack(&[&log_others.expand_as(label_scores), label_scores], 2)
+        .logsumexp([2], false); // [B, K]
+    let log_density = label_scores - log_normalisers + log_volume;
     let per_image =
         (log_density * label_mask).sum_dim_intlist([1].as_slice(), false, label_mask.kind())
             / label_mask.sum_dim_intlist([1].as_slice(), false, label_mask.kind());
@@ -231,12 +241,35 @@ mod tests {
 
     #[test]
     fn masked_labels_do_not_count() {
-        let queries = Tensor::zeros([1, 10], (Kind::Double, Device::Cpu));
+        // The first label is the first query (score 1); the second, masked, would score 50.
+        let mut scores = [0.0f64; 10];
+        scores[0] = 1.0;
+        let queries = Tensor::from_slice(&scores).reshape([1, 10]);
         let labels = Tensor::from_slice(&[1.0f64, 50.0]).reshape([1, 2]);
         let one = Tensor::from_slice(&[1.0f64, 0.0]).reshape([1, 2]);
         let nll = f64::try_from(set_nll(&queries, &labels, &one)).unwrap();
-        let expected = -(1.0 - 10f64.ln() + (10.0 / std::f64::consts::PI.powi(2)).ln());
+        let expected =
+            -(1.0 - (1f64.exp() + 9.0).ln() + (10.0 / std::f64::consts::PI.powi(2)).ln());
         assert!((nll - expected).abs() < 1e-12);
+    }
+
+    #[test]
+    fn every_label_is_in_its_own_normaliser() {
+        // A label far above every query (a peak between grid points) raises its own
+        // normaliser with it: its density tends to N/π², never beyond, so the loss stays above
+        // −ln(N/π²) however sharp the peak; the other label keeps its uniform density.
+        let queries = Tensor::zeros([1, 10], (Kind::Double, Device::Cpu));
+        let mask = Tensor::ones([1, 2], (Kind::Double, Device::Cpu));
+        let log_volume = (10.0 / std::f64::consts::PI.powi(2)).ln();
+        for peak in [10.0, 100.0, 1e4] {
+            let labels = Tensor::from_slice(&[0.0f64, peak]).reshape([1, 2]);
+            let nll = f64::try_from(set_nll(&queries, &labels, &mask)).unwrap();
+            let uniform = -std::f64::consts::PI.powi(2).ln();
+            let peaked = -(1.0 + 9.0 * (-peak).exp()).ln() + log_volume;
+            let expected = -0.5 * (uniform + peaked);
+            assert!((nll - expected).abs() < 1e-12, "{nll} {expected}");
+            assert!(nll > -log_volume);
+        }
     }
 
     #[test]
