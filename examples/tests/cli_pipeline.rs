@@ -150,6 +150,10 @@ fn a_miniature_pipeline_writes_every_artefact() {
         &["eval", "--checkpoint", s(&run), "--level", "6", "--dense"],
         "--dense goes up to level 5",
     );
+    assert_fails(
+        &["eval", "--checkpoint", s(&run), "--level", "7"],
+        "7 is not in 0..=6",
+    );
     let figure = dir.path().join("viz.png");
     ipdf_json(&[
         "viz",
