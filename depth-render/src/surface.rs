@@ -58,6 +58,8 @@ impl Scene {
         let window = rendering.window;
         let width = window.width() as usize;
         let mut out = vec![background; rendering.depth.len()];
+        // Neighbouring pixels mostly see the same triangle: its camera-frame corners are kept.
+        let mut last: Option<(u16, u32, [Point3<f64>; 3])> = None;
         for (i, (value, (&instance, &triangle))) in out
             .iter_mut()
             .zip(rendering.instance.iter().zip(&rendering.triangle))
@@ -85,9 +87,18 @@ impl Scene {
                 f64::from(window.v0) + (i / width) as f64,
             );
             let view = Vector3::from(camera.ray_direction(u, v));
-            let corners = mesh
-                .corners(triangle as usize)
-                .map(|p| placed.camera_from_model * p.cast::<f64>());
+            let corners = match last {
+                Some((seen, seen_triangle, corners)) if (seen, seen_triangle) == (k, triangle) => {
+                    corners
+                }
+                _ => {
+                    let corners = mesh
+                        .corners(triangle as usize)
+                        .map(|p| placed.camera_from_model * p.cast::<f64>());
+                    last = Some((k, triangle, corners));
+                    corners
+                }
+            };
             *value = f(&SurfacePoint {
                 index: usize::from(k),
                 instance: placed,

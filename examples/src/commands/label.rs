@@ -51,6 +51,10 @@ pub struct LabelArgs {
     /// Merge labels closer than this many degrees.
     #[arg(long, default_value_t = 2.0)]
     pub merge_angle: f64,
+    /// Read depth and masks at every n-th pixel of every n-th row (1: all; the observed cloud
+    /// is downsampled to the voxel size anyway).
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=8))]
+    pub pixel_stride: u32,
     /// Label only scenes k with k mod n = i (sorted order), for job arrays: `i/n`, 0 ≤ i < n.
     #[arg(long, default_value = "0/1")]
     pub shard: String,
@@ -76,6 +80,7 @@ pub fn run(args: &LabelArgs, seed: u64) -> Result<serde_json::Value> {
         max_score: args.max_score,
         score_floor: args.score_floor,
         merge_angle_deg: args.merge_angle,
+        pixel_stride: args.pixel_stride,
         seed,
         ..LabelOptions::default()
     };

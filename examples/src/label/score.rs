@@ -40,6 +40,53 @@ impl<'a> Observation<'a> {
     }
 }
 
+/// Depth and mask read at every n-th pixel of every n-th row, with the camera that sees those
+/// pixels.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SampledImage {
+    /// The camera of the sampled pixels: pixel `(u, v)` is pixel `(n·u, n·v)` of the image.
+    pub camera: PinholeCamera,
+    /// z-depth (metres), row-major.
+    pub depth: Vec<f32>,
+    /// The mask, row-major.
+    pub mask: Vec<bool>,
+}
+
+/// Pixels `(n·u, n·v)` of a depth image and its mask (both `camera`'s size, row-major), for
+/// `stride` n ≥ 1 (0 reads as 1); pixels beyond a short slice read as no depth and not
+/// masked. Rays go through integer pixel coordinates, so the focal lengths and the principal
+/// point divide by n.
+pub fn every_nth_pixel(
+    camera: &PinholeCamera,
+    depth: &[f32],
+    mask: &[bool],
+    stride: u32,
+) -> SampledImage {
+    let n = stride.max(1);
+    let (width, height) = (camera.width.div_ceil(n), camera.height.div_ceil(n));
+    let sampled = PinholeCamera {
+        fx: camera.fx / f64::from(n),
+        fy: camera.fy / f64::from(n),
+        cx: camera.cx / f64::from(n),
+        cy: camera.cy / f64::from(n),
+        width,
+        height,
+    };
+    let pixels = (0..height).flat_map(|v| {
+        (0..width).map(move |u| (v * n) as usize * camera.width as usize + (u * n) as usize)
+    });
+    SampledImage {
+        camera: sampled,
+        depth: pixels
+            .clone()
+            .map(|i| depth.get(i).copied().unwrap_or(0.0))
+            .collect(),
+        mask: pixels
+            .map(|i| mask.get(i).copied().unwrap_or(false))
+            .collect(),
+    }
+}
+
 /// The render-and-compare score (metres, lower is better) of the model (mesh 0 of `scene`) at
 /// model→camera `pose`: [`depth_discrepancy`] over the observation's window between the masked
 /// observed depth and the rendered depth, except that rendered pixels outside the mask behind
@@ -80,4 +127,55 @@ pub fn render_and_compare(
         }
     }
     depth_discrepancy(&observed, &rendered, clamp)
+}
+
+#[cfg(test)]
+mod tests {
+    use proptest::prelude::*;
+
+    use super::*;
+
+    proptest! {
+        /// Pixel `(u, v)` of the sampled image is pixel `(n·u, n·v)` of the image: the same
+        /// depth, the same mask value and the same camera ray; no pixel is left out at the
+        /// right or bottom edge.
+        #[test]
+        fn sampled_pixels_are_the_images_pixels(
+            width in 1u32..40,
+            height in 1u32..40,
+            stride in 1u32..6,
+            fx in 100.0..2000.0f64,
+            cx in -50.0..50.0f64,
+        ) {
+            let camera = PinholeCamera::new(fx, 1.1 * fx, cx, cx + 3.0, width, height).unwrap();
+            let count = (width * height) as usize;
+            let depth: Vec<f32> = (0..count).map(|i| i as f32).collect();
+            let mask: Vec<bool> = (0..count).map(|i| i % 3 == 0).collect();
+            let sampled = every_nth_pixel(&camera, &depth, &mask, stride);
+            prop_assert_eq!(sampled.camera.width, (width - 1) / stride + 1);
+            prop_assert_eq!(sampled.camera.height, (height - 1) / stride + 1);
+            prop_assert_eq!(sampled.depth.len(), sampled.mask.len());
+            for (i, (&d, &m)) in sampled.depth.iter().zip(&sampled.mask).enumerate() {
+                let (u, v) = (i as u32 % sampled.camera.width, i as u32 / sampled.camera.width);
+                let (full_u, full_v) = (u * stride, v * stride);
+                let full = (full_v * width + full_u) as usize;
+                prop_assert_eq!(d, depth[full]);
+                prop_assert_eq!(m, mask[full]);
+                let ray = sampled.camera.ray_direction(f64::from(u), f64::from(v));
+                let full_ray = camera.ray_direction(f64::from(full_u), f64::from(full_v));
+                for k in 0..3 {
+                    prop_assert!((ray[k] - full_ray[k]).abs() < 1e-12);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn short_slices_read_as_empty_pixels() {
+        let camera = PinholeCamera::new(500.0, 500.0, 4.0, 4.0, 8, 8).unwrap();
+        let sampled = every_nth_pixel(&camera, &[1.0; 10], &[true; 10], 2);
+        assert_eq!(sampled.depth.len(), 16);
+        assert_eq!(&sampled.depth[..5], &[1.0, 1.0, 1.0, 1.0, 0.0]);
+        assert!(sampled.mask[4..].iter().all(|&m| !m));
+    }
 }
