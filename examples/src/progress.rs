@@ -1,5 +1,11 @@
 //! Progress bars of long commands (on standard error, hidden when it is not a terminal).
-use indicatif::{ProgressBar, ProgressStyle};
+use std::sync::OnceLock;
+
+use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
+
+/// Every bar of the process, so that bars of jobs running at once (the pipeline trains two
+/// models together) get a line each.
+static BARS: OnceLock<MultiProgress> = OnceLock::new();
 
 /// A bar of `total` steps named `what` (e.g. `"frames"`), showing the rate per second and the
 /// time left.
@@ -8,5 +14,6 @@ pub fn bar(total: u64, what: &str) -> ProgressBar {
         "{{bar:40}} {{pos}}/{{len}} {what} ({{per_sec}}, {{eta}} left)"
     ))
     .unwrap_or_else(|_| ProgressStyle::default_bar());
-    ProgressBar::new(total).with_style(style)
+    BARS.get_or_init(MultiProgress::new)
+        .add(ProgressBar::new(total).with_style(style))
 }

@@ -5,6 +5,7 @@
 //! skipped when its outputs exist. The run's settings are recorded in `pipeline_config.json`
 //! when it starts, and a rerun into the same folder with other settings is refused.
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
@@ -55,6 +56,9 @@ struct Plan {
     occlusion: &'static [bool],
     /// Encoders also trained on pseudo labels (the paper's backbone comparison).
     backbones: &'static [&'static str],
+    /// Models trained at once, each on one CPU thread: small models leave a second core
+    /// partly idle, so two at a time finish sooner than one on two threads.
+    concurrent_models: usize,
 }
 
 impl Preset {
@@ -75,6 +79,7 @@ impl Preset {
                 eval_level: 4,
                 occlusion: &[false],
                 backbones: &[],
+                concurrent_models: 2,
             },
             Self::Paper => Plan {
                 frames: 6667,
@@ -91,6 +96,7 @@ impl Preset {
                 eval_level: 4,
                 occlusion: &[false, true],
                 backbones: &["resnet18-2", "convnext-tiny"],
+                concurrent_models: 1,
             },
         }
     }
@@ -150,6 +156,47 @@ struct ModelRun {
     occlusion: bool,
     encoder: &'static str,
     dir: PathBuf,
+}
+
+/// Runs `job` on every item, `workers` at a time on threads of their own, each with one
+/// libtorch thread, or more once fewer items are left than workers (`workers` ≤ 1: in turn,
+/// libtorch's threads unchanged). Stops taking new items after the first error, which it
+/// returns.
+fn on_threads<T: Sync>(
+    items: &[T],
+    workers: usize,
+    job: impl Fn(&T) -> Result<()> + Sync,
+) -> Result<()> {
+    if workers <= 1 {
+        return items.iter().try_for_each(job);
+    }
+    let threads = tch::get_num_threads();
+    let next = AtomicUsize::new(0);
+    let work = || -> Result<()> {
+        loop {
+            let index = next.fetch_add(1, Ordering::Relaxed);
+            let Some(item) = items.get(index) else {
+                return Ok(());
+            };
+            let running = (items.len() - index).min(workers) as i32;
+            tch::set_num_threads((threads / running).max(1));
+            job(item).inspect_err(|_| next.store(items.len(), Ordering::Relaxed))?;
+        }
+    };
+    let outcomes: Vec<Result<()>> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..workers).map(|_| scope.spawn(work)).collect();
+        handles
+            .into_iter()
+            .map(|handle| {
+                handle
+                    .join()
+                    .unwrap_or_else(|_| Err(anyhow::anyhow!("a training thread panicked")))
+            })
+            .collect()
+    });
+    // libtorch's thread count is partly process-wide (MKL's): put it back for what follows.
+    tch::set_num_threads(threads);
+    outcomes.into_iter().collect()
 }
 
 /// Runs `ipdf pipeline`; returns `report.json`.
@@ -260,11 +307,16 @@ pub fn run(args: &PipelineArgs, seed: u64) -> Result<Value> {
         .collect();
     let started = Instant::now();
     let data = out.join("data").join("uniform");
+    let total = plan.epochs * plan.steps_per_epoch;
+    let mut pending = Vec::new();
     for run in &runs {
-        let total = plan.epochs * plan.steps_per_epoch;
-        if run.dir.join(CHECKPOINT_FILE).exists() && CheckpointInfo::read(&run.dir)?.step >= total {
-            continue;
+        if !(run.dir.join(CHECKPOINT_FILE).exists()
+            && CheckpointInfo::read(&run.dir)?.step >= total)
+        {
+            pending.push(run);
         }
+    }
+    on_threads(&pending, plan.concurrent_models, |run| {
         let mut words = words![
             "--dataset",
             data.display(),
@@ -300,8 +352,8 @@ pub fn run(args: &PipelineArgs, seed: u64) -> Result<Value> {
             run.labels,
             if run.occlusion { " with occlusion" } else { "" }
         );
-        train::run(&parse(&words)?, seed)?;
-    }
+        train::run(&parse(&words)?, seed).map(drop)
+    })?;
     stage("train", started);
 
     // 4. Scores on the validation split.
@@ -667,4 +719,53 @@ fn report_markdown(report: &Value, figures: &[(&ModelRun, String)]) -> String {
         text.push_str(&format!("| {name} | {} |\n", number(seconds, 0)));
     }
     text
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Mutex;
+
+    use super::*;
+
+    #[test]
+    fn every_item_runs_once_whatever_the_workers() {
+        for workers in [1, 2, 3, 8] {
+            let done = Mutex::new(Vec::new());
+            let items: Vec<usize> = (0..9).collect();
+            on_threads(&items, workers, |&i| {
+                done.lock().unwrap().push(i);
+                Ok(())
+            })
+            .unwrap();
+            let mut done = done.into_inner().unwrap();
+            done.sort_unstable();
+            assert_eq!(done, items, "{workers} workers");
+        }
+    }
+
+    #[test]
+    fn the_first_error_stops_new_items_and_is_returned() {
+        for workers in [1, 2] {
+            let started = AtomicUsize::new(0);
+            let items: Vec<usize> = (0..50).collect();
+            let outcome = on_threads(&items, workers, |&i| {
+                started.fetch_add(1, Ordering::Relaxed);
+                if i == 3 {
+                    anyhow::bail!("item {i} failed");
+                }
+                std::thread::sleep(std::time::Duration::from_millis(20));
+                Ok(())
+            });
+            assert_eq!(outcome.unwrap_err().to_string(), "item 3 failed");
+            // Only items taken before item 3 failed (the others take 20 ms each) were started.
+            assert!(started.into_inner() <= 3 + 2 * workers, "{workers} workers");
+        }
+    }
+
+    #[test]
+    fn libtorch_threads_are_put_back() {
+        let before = tch::get_num_threads();
+        on_threads(&[0, 1, 2], 2, |_| Ok(())).unwrap();
+        assert_eq!(tch::get_num_threads(), before);
+    }
 }
