@@ -57,7 +57,7 @@ pub use instance::{
 };
 pub use model::{ObjectModel, max_distance, mesh_diameter};
 pub use report::{LabelReport, ObjectLabelScores, report};
-pub use score::{Observation, SampledImage, every_nth_pixel, render_and_compare};
+pub use score::{Observation, PixelLattice, render_and_compare};
 
 use crate::dataset::{
     BopDataset, PseudoInstance, SceneDir, read_object_ids, read_scene_camera, write_pseudo_gt,
@@ -100,7 +100,7 @@ pub struct LabelOptions {
     pub merge_angle_deg: f64,
     /// At most this many self-symmetries are used for re-seeding, spread evenly.
     pub max_symmetries: usize,
-    /// Depth and mask are read at every n-th pixel of every n-th row ([`every_nth_pixel`]):
+    /// Depth and mask are read at every n-th pixel of every n-th row ([`PixelLattice`]):
     /// the observed cloud is downsampled to voxels of millimetres anyway, and the
     /// render-and-compare score is a mean over the window, so 2 costs a quarter of the rays
     /// for the same labels.
@@ -425,6 +425,9 @@ fn label_image(
         Ok(camera) => camera.camera,
         Err(error) => return failed_image(obj_ids, &LabelFailure::Input(error.to_string())),
     };
+    // Sampled once per image; each instance samples only its mask.
+    let lattice = PixelLattice::new(&camera, options.pixel_stride);
+    let sampled_depth = lattice.sample(&depth.pixels, 0.0);
     obj_ids
         .iter()
         .enumerate()
@@ -449,9 +452,8 @@ fn label_image(
                 };
                 return failed_instance(obj_id, &failure);
             }
-            let sampled =
-                every_nth_pixel(&camera, &depth.pixels, &mask.pixels, options.pixel_stride);
-            let Some(observation) = Observation::new(sampled.camera, &sampled.depth, &sampled.mask)
+            let sampled_mask = lattice.sample(&mask.pixels, false);
+            let Some(observation) = Observation::new(lattice.camera, &sampled_depth, &sampled_mask)
             else {
                 return failed_instance(obj_id, &LabelFailure::EmptyMask);
             };

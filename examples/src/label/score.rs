@@ -40,50 +40,45 @@ impl<'a> Observation<'a> {
     }
 }
 
-/// Depth and mask read at every n-th pixel of every n-th row, with the camera that sees those
-/// pixels.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SampledImage {
-    /// The camera of the sampled pixels: pixel `(u, v)` is pixel `(n·u, n·v)` of the image.
+/// The pixels `(n·u, n·v)` of an image, for a stride n ≥ 1: the camera that sees them, and
+/// their values read from any per-pixel image of the full camera's size.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PixelLattice {
+    /// The camera of the sampled pixels: its pixel `(u, v)` is pixel `(n·u, n·v)` of the image.
     pub camera: PinholeCamera,
-    /// z-depth (metres), row-major.
-    pub depth: Vec<f32>,
-    /// The mask, row-major.
-    pub mask: Vec<bool>,
+    stride: u32,
+    image_width: u32,
 }
 
-/// Pixels `(n·u, n·v)` of a depth image and its mask (both `camera`'s size, row-major), for
-/// `stride` n ≥ 1 (0 reads as 1); pixels beyond a short slice read as no depth and not
-/// masked. Rays go through integer pixel coordinates, so the focal lengths and the principal
-/// point divide by n.
-pub fn every_nth_pixel(
-    camera: &PinholeCamera,
-    depth: &[f32],
-    mask: &[bool],
-    stride: u32,
-) -> SampledImage {
-    let n = stride.max(1);
-    let (width, height) = (camera.width.div_ceil(n), camera.height.div_ceil(n));
-    let sampled = PinholeCamera {
-        fx: camera.fx / f64::from(n),
-        fy: camera.fy / f64::from(n),
-        cx: camera.cx / f64::from(n),
-        cy: camera.cy / f64::from(n),
-        width,
-        height,
-    };
-    let pixels = (0..height).flat_map(|v| {
-        (0..width).map(move |u| (v * n) as usize * camera.width as usize + (u * n) as usize)
-    });
-    SampledImage {
-        camera: sampled,
-        depth: pixels
-            .clone()
-            .map(|i| depth.get(i).copied().unwrap_or(0.0))
-            .collect(),
-        mask: pixels
-            .map(|i| mask.get(i).copied().unwrap_or(false))
-            .collect(),
+impl PixelLattice {
+    /// Every `stride`-th pixel of every `stride`-th row of `camera`'s image (0 reads as 1).
+    /// Rays go through integer pixel coordinates, so the focal lengths and the principal point
+    /// divide by the stride.
+    pub fn new(camera: &PinholeCamera, stride: u32) -> Self {
+        let n = stride.max(1);
+        let camera_of_lattice = PinholeCamera {
+            fx: camera.fx / f64::from(n),
+            fy: camera.fy / f64::from(n),
+            cx: camera.cx / f64::from(n),
+            cy: camera.cy / f64::from(n),
+            width: camera.width.div_ceil(n),
+            height: camera.height.div_ceil(n),
+        };
+        Self {
+            camera: camera_of_lattice,
+            stride: n,
+            image_width: camera.width,
+        }
+    }
+
+    /// The lattice's values of a row-major image of the full camera's size (depth, mask…);
+    /// pixels beyond a short slice read as `missing`.
+    pub fn sample<T: Copy>(&self, image: &[T], missing: T) -> Vec<T> {
+        let (n, width) = (self.stride as usize, self.image_width as usize);
+        (0..self.camera.height as usize)
+            .flat_map(|v| (0..self.camera.width as usize).map(move |u| v * n * width + u * n))
+            .map(|i| image.get(i).copied().unwrap_or(missing))
+            .collect()
     }
 }
 
@@ -151,17 +146,19 @@ mod tests {
             let count = (width * height) as usize;
             let depth: Vec<f32> = (0..count).map(|i| i as f32).collect();
             let mask: Vec<bool> = (0..count).map(|i| i % 3 == 0).collect();
-            let sampled = every_nth_pixel(&camera, &depth, &mask, stride);
-            prop_assert_eq!(sampled.camera.width, (width - 1) / stride + 1);
-            prop_assert_eq!(sampled.camera.height, (height - 1) / stride + 1);
-            prop_assert_eq!(sampled.depth.len(), sampled.mask.len());
-            for (i, (&d, &m)) in sampled.depth.iter().zip(&sampled.mask).enumerate() {
-                let (u, v) = (i as u32 % sampled.camera.width, i as u32 / sampled.camera.width);
+            let lattice = PixelLattice::new(&camera, stride);
+            let (sampled_depth, sampled_mask) = (lattice.sample(&depth, 0.0), lattice.sample(&mask, false));
+            prop_assert_eq!(lattice.camera.width, (width - 1) / stride + 1);
+            prop_assert_eq!(lattice.camera.height, (height - 1) / stride + 1);
+            prop_assert_eq!(sampled_depth.len(), (lattice.camera.width * lattice.camera.height) as usize);
+            prop_assert_eq!(sampled_depth.len(), sampled_mask.len());
+            for (i, (&d, &m)) in sampled_depth.iter().zip(&sampled_mask).enumerate() {
+                let (u, v) = (i as u32 % lattice.camera.width, i as u32 / lattice.camera.width);
                 let (full_u, full_v) = (u * stride, v * stride);
                 let full = (full_v * width + full_u) as usize;
                 prop_assert_eq!(d, depth[full]);
                 prop_assert_eq!(m, mask[full]);
-                let ray = sampled.camera.ray_direction(f64::from(u), f64::from(v));
+                let ray = lattice.camera.ray_direction(f64::from(u), f64::from(v));
                 let full_ray = camera.ray_direction(f64::from(full_u), f64::from(full_v));
                 for k in 0..3 {
                     prop_assert!((ray[k] - full_ray[k]).abs() < 1e-12);
@@ -173,9 +170,13 @@ mod tests {
     #[test]
     fn short_slices_read_as_empty_pixels() {
         let camera = PinholeCamera::new(500.0, 500.0, 4.0, 4.0, 8, 8).unwrap();
-        let sampled = every_nth_pixel(&camera, &[1.0; 10], &[true; 10], 2);
-        assert_eq!(sampled.depth.len(), 16);
-        assert_eq!(&sampled.depth[..5], &[1.0, 1.0, 1.0, 1.0, 0.0]);
-        assert!(sampled.mask[4..].iter().all(|&m| !m));
+        let lattice = PixelLattice::new(&camera, 2);
+        let (depth, mask) = (
+            lattice.sample(&[1.0; 10], 0.0),
+            lattice.sample(&[true; 10], false),
+        );
+        assert_eq!(depth.len(), 16);
+        assert_eq!(&depth[..5], &[1.0, 1.0, 1.0, 1.0, 0.0]);
+        assert!(mask[4..].iter().all(|&m| !m));
     }
 }
