@@ -244,6 +244,18 @@ fn bad_flags_and_missing_inputs_fail_with_one_line() {
         &["label", "--dataset", s(dir.path()), "--labels", "x"],
         "--labels",
     );
+    for stride in ["0", "9"] {
+        assert_fails(
+            &[
+                "label",
+                "--dataset",
+                s(dir.path()),
+                "--pixel-stride",
+                stride,
+            ],
+            "--pixel-stride",
+        );
+    }
     assert_fails(
         &["synth", "--out", s(dir.path()), "--frames", "0"],
         "frames",

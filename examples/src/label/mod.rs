@@ -473,3 +473,19 @@ fn label_image(
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_pixel_stride_of_zero_is_refused_by_name() {
+        let options = LabelOptions {
+            pixel_stride: 0,
+            ..LabelOptions::default()
+        };
+        let error = options.validate().unwrap_err().to_string();
+        assert!(error.contains("pixel_stride"), "{error}");
+        assert!(LabelOptions::default().validate().is_ok());
+    }
+}
