@@ -27,7 +27,7 @@ use super::{eval, label, synth, train};
 /// A size of run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Preset {
-    /// Minutes on a laptop CPU: 900 training frames per object, a small CNN on 48-pixel crops.
+    /// Minutes on a laptop CPU: 800 training frames per object, a small CNN on 48-pixel crops.
     Quick,
     /// The paper's scale (GPU advised): 20,000 frames per variant, ResNet-18 on 224-pixel crops,
     /// 50 epochs of 200 steps of 64; with and without occlusion, and two more backbones.
@@ -65,7 +65,7 @@ impl Preset {
     fn plan(self) -> Plan {
         match self {
             Self::Quick => Plan {
-                frames: 900,
+                frames: 800,
                 val_frames: 50,
                 texture_frames: 20,
                 encoder: "small-cnn",
