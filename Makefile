@@ -12,7 +12,7 @@ $(LIBTORCH_STAMP):
 	scripts/setup-libtorch.sh
 
 demo: setup
-	$(CARGO) build --release -p examples --bin ipdf
+	$(CARGO) build --release -p ipdf --bin ipdf
 	mkdir -p runs/demo
 	target/release/ipdf grid --level 4 --out runs/demo/grid_level4.npy --json
 	target/release/ipdf pipeline --preset quick --out runs/demo --json
@@ -56,7 +56,7 @@ bench-python: $(BENCH_VENV)/.ready $(BENCH_VENV)/.ready-open3d $(BENCH_VENV)/.re
 	$(BENCH_VENV)/bin/python benches/python/healpy_grid.py
 	mkdir -p runs/bench
 	$(BENCH_VENV)/bin/python benches/python/open3d_raycast.py --json runs/bench/open3d_raycast.json
-	$(CARGO) run --release -p examples --example registration_trials -- --out runs/bench/registration --repeat 3
+	$(CARGO) run --release -p ipdf --example registration_trials -- --out runs/bench/registration --repeat 3
 	$(BENCH_VENV)/bin/python benches/python/open3d_registration.py runs/bench/registration --repeat 3 \
 		--json runs/bench/open3d_registration.json
 	$(BENCH_VENV)/bin/python benches/python/ipdf_train_step.py --json runs/bench/pytorch_train_step.json

@@ -15,8 +15,8 @@ use nalgebra::UnitQuaternion;
 use so3_grid::random_rotations;
 use tch::{Device, Kind, Tensor};
 
-// As the `ipdf` binary: jemalloc keeping freed pages (see examples/src/allocator.rs).
-examples::keep_freed_pages_allocator!();
+// As the `ipdf` binary: jemalloc keeping freed pages (see examples/ipdf/src/allocator.rs).
+ipdf::keep_freed_pages_allocator!();
 
 const BATCH: i64 = 32;
 const SIZE: i64 = 96;

@@ -9,14 +9,12 @@ use std::time::Duration;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use depth_render::Material;
-use examples::label::{
+use pseudo_label::{
     LabelOptions, ObjectModel, Observation, Strategy, global_alignment, label_instance,
     observed_cloud, observed_features, refine_pose, score_pose,
 };
-use examples::synth::{
-    FrameRenderer, FrameStyle, ObjectKind, SynthObject, SynthOptions, ViewRange,
-};
 use rand::SeedableRng;
+use synth_data::{FrameRenderer, FrameStyle, ObjectKind, SynthObject, SynthOptions, ViewRange};
 
 fn labelling(c: &mut Criterion) {
     let mut group = c.benchmark_group("labelling");

@@ -7,7 +7,6 @@ use std::hint::black_box;
 use std::num::NonZeroUsize;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use examples::trials::{egg_mesh, model_cloud, registration_trials};
 use nalgebra::{Isometry3, Point3};
 use parry3d::bounding_volume::Aabb;
 use parry3d::partitioning::{Bvh, BvhBuildStrategy};
@@ -16,6 +15,7 @@ use registration::{
     NormalOrientation, PointIndex, PrepareOptions, RegisterOptions, align_fgr, compute_fpfh,
     downsample_voxel, estimate_normals, prepare_cloud, refine_icp, register,
 };
+use synth_data::trials::{egg_mesh, model_cloud, registration_trials};
 
 const VOXEL: f32 = 0.005;
 

@@ -2,7 +2,8 @@
 //! shaded RGB.
 //!
 //! - [`TriangleMesh`]: validated vertices and faces (metres, model frame) with optional vertex
-//!   normals, colours and texture coordinates; [`load_mesh`] reads PLY and OBJ files;
+//!   normals, colours and texture coordinates; [`load_mesh`] reads PLY and OBJ files,
+//!   [`load_vertices`] their vertices alone (point clouds) and [`write_ply`] writes PLY;
 //!   [`primitives`] builds closed, outward-wound shapes with exact dimensions and [`Primitive`]
 //!   names them with their analytic symmetry groups ([`metrics::SymmetryGroup`]).
 //! - [`resting_poses`]: the faces of the convex hull an object can stand on, with their
@@ -58,8 +59,8 @@ mod tile_cast;
 pub use camera::PinholeCamera;
 pub use compare::{depth_discrepancy, unproject};
 pub use error::RenderError;
-pub use mesh::TriangleMesh;
-pub use mesh_io::load_mesh;
+pub use mesh::{TriangleMesh, max_distance};
+pub use mesh_io::{Vertices, load_mesh, load_vertices, write_ply};
 pub use noise::DepthNoise;
 pub use render::{Instance, NO_TRIANGLE, Rendering, Scene, Window};
 pub use resting::{RestingPose, group_by_symmetry, resting_poses};

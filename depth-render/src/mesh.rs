@@ -1,8 +1,23 @@
 //! Triangle meshes: validated vertex positions (metres, model frame) and faces, with optional
 //! per-vertex normals, colours and texture coordinates.
 use nalgebra::{Point3, Vector3};
+use rayon::prelude::*;
 
 use crate::RenderError;
+
+/// The largest distance between two of `points` (0 for fewer than two), in parallel.
+pub fn max_distance(points: &[Point3<f32>]) -> f32 {
+    points
+        .par_iter()
+        .enumerate()
+        .map(|(i, a)| {
+            points[i + 1..]
+                .iter()
+                .map(|b| (a - b).norm())
+                .fold(0.0f32, f32::max)
+        })
+        .reduce(|| 0.0, f32::max)
+}
 
 /// A triangle mesh with counter-clockwise (outward, seen from outside) winding.
 #[derive(Debug, Clone, PartialEq)]
@@ -165,6 +180,11 @@ impl TriangleMesh {
                 a.dot(&b.cross(&c)) / 6.0
             })
             .sum()
+    }
+
+    /// The largest distance between two vertices (metres), as BOP's `diameter`.
+    pub fn diameter(&self) -> f64 {
+        max_distance(&self.positions).into()
     }
 
     /// `(min, max)` corners of the axis-aligned bounding box.

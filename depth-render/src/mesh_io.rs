@@ -2,6 +2,9 @@
 //! OBJ files, with a scale to metres (BOP meshes are in millimetres: `scale = 0.001`).
 //! Per-vertex normals (`nx ny nz`, OBJ `vn`), colours (`red green blue`, OBJ `v x y z r g b`) and
 //! texture coordinates (`s t`, `u v`, `texture_u texture_v`, OBJ `vt`) are kept when present.
+//! The same reader gives the vertices alone ([`load_vertices`]: point clouds, a mesh's vertices),
+//! and [`write_ply`] writes binary little-endian PLY of vertices, normals and faces.
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Point3, Vector3};
@@ -23,20 +26,9 @@ pub fn load_mesh(path: &Path, scale: f64) -> Result<TriangleMesh, RenderError> {
             format!("must be positive, got {scale}"),
         ));
     }
-    let extension = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    let raw = match extension.as_deref() {
-        Some("ply") => read_ply(path)?,
-        Some("obj") => read_obj(path)?,
-        _ => {
-            return Err(file_error(
-                path,
-                "extension",
-                "expected .ply or .obj".into(),
-            ));
-        }
+    let raw = read_raw(path)?;
+    let Some(polygons) = &raw.polygons else {
+        return Err(file_error(path, "face", "missing".into()));
     };
     let positions = raw
         .positions
@@ -45,7 +37,7 @@ pub fn load_mesh(path: &Path, scale: f64) -> Result<TriangleMesh, RenderError> {
         .collect();
     let mut triangles = Vec::new();
     let mut face_of_triangle = Vec::new();
-    for (face, polygon) in raw.polygons.iter().enumerate() {
+    for (face, polygon) in polygons.iter().enumerate() {
         if polygon.len() < 3 {
             return Err(file_error(
                 path,
@@ -89,11 +81,134 @@ pub fn load_mesh(path: &Path, scale: f64) -> Result<TriangleMesh, RenderError> {
         })
 }
 
+/// The vertices of a PLY or OBJ file (a point cloud, or a mesh's vertices), in metres.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Vertices {
+    /// Positions (metres).
+    pub positions: Vec<Point3<f32>>,
+    /// Unit normals, when every vertex has one.
+    pub normals: Option<Vec<Vector3<f32>>>,
+}
+
+/// Loads the vertices (and normals, when every vertex has `nx ny nz`) of a `.ply` or `.obj` file,
+/// multiplying coordinates by `scale`; faces, colours and other properties are ignored, so a mesh
+/// file reads as its vertices. Errors name the file and the field: a missing file, a malformed
+/// header or body, a missing `vertex` element, a vertex without `x`, a non-finite coordinate, a
+/// zero-length normal.
+pub fn load_vertices(path: &Path, scale: f64) -> Result<Vertices, RenderError> {
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(file_error(
+            path,
+            "scale",
+            format!("must be positive, got {scale}"),
+        ));
+    }
+    let raw = read_raw(path)?;
+    let mut positions = Vec::with_capacity(raw.positions.len());
+    for (i, p) in raw.positions.iter().enumerate() {
+        if let Some(axis) = (0..3).find(|&k| !p[k].is_finite()) {
+            let field = format!("vertex[{i}].{}", ["x", "y", "z"][axis]);
+            return Err(file_error(path, &field, "not a finite number".into()));
+        }
+        positions.push((p * scale).cast::<f32>());
+    }
+    let normals = match raw.normals {
+        None => None,
+        Some(normals) => Some(
+            normals
+                .into_iter()
+                .enumerate()
+                .map(|(i, n)| {
+                    let length = n.norm();
+                    if length.is_finite() && length > 0.0 {
+                        Ok(n / length)
+                    } else {
+                        let field = format!("vertex[{i}].nx");
+                        Err(file_error(path, &field, "zero-length normal".into()))
+                    }
+                })
+                .collect::<Result<_, _>>()?,
+        ),
+    };
+    Ok(Vertices { positions, normals })
+}
+
+/// Writes binary little-endian PLY to `out`: float `x y z` (multiplied by `scale`), `nx ny nz`
+/// when `normals` are given (one per position), and `vertex_indices` per triangle (an element
+/// `face` only when there are triangles). BOP's model format with `scale = 1000` for a mesh in
+/// metres.
+pub fn write_ply(
+    out: &mut impl Write,
+    positions: &[Point3<f32>],
+    normals: Option<&[Vector3<f32>]>,
+    triangles: &[[u32; 3]],
+    scale: f32,
+) -> std::io::Result<()> {
+    if normals.is_some_and(|n| n.len() != positions.len()) {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "one normal per vertex expected",
+        ));
+    }
+    let mut header = format!(
+        "ply\nformat binary_little_endian 1.0\ncomment ipdf-rs\nelement vertex {}\n\
+         property float x\nproperty float y\nproperty float z\n",
+        positions.len()
+    );
+    if normals.is_some() {
+        header += "property float nx\nproperty float ny\nproperty float nz\n";
+    }
+    if !triangles.is_empty() {
+        header += &format!(
+            "element face {}\nproperty list uchar int vertex_indices\n",
+            triangles.len()
+        );
+    }
+    header += "end_header\n";
+    out.write_all(header.as_bytes())?;
+    for (i, p) in positions.iter().enumerate() {
+        for v in (p.coords * scale).iter() {
+            out.write_all(&v.to_le_bytes())?;
+        }
+        if let Some(normals) = normals {
+            for v in normals[i].iter() {
+                out.write_all(&v.to_le_bytes())?;
+            }
+        }
+    }
+    for triangle in triangles {
+        out.write_all(&[3])?;
+        for &index in triangle {
+            let index = i32::try_from(index).map_err(std::io::Error::other)?;
+            out.write_all(&index.to_le_bytes())?;
+        }
+    }
+    Ok(())
+}
+
+/// Reads a `.ply` or `.obj` file, by its extension.
+fn read_raw(path: &Path) -> Result<RawMesh, RenderError> {
+    let extension = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    match extension.as_deref() {
+        Some("ply") => read_ply(path),
+        Some("obj") => read_obj(path),
+        _ => Err(file_error(
+            path,
+            "extension",
+            "expected .ply or .obj".into(),
+        )),
+    }
+}
+
 /// A mesh as read from a file, before validation.
 #[derive(Default)]
 struct RawMesh {
     positions: Vec<Point3<f64>>,
-    polygons: Vec<Vec<u32>>,
+    /// The faces, `None` for a file without a face element (a point cloud).
+    polygons: Option<Vec<Vec<u32>>>,
     normals: Option<Vec<Vector3<f32>>>,
     colors: Option<Vec<[f32; 3]>>,
     uvs: Option<Vec<[f32; 2]>>,
@@ -111,7 +226,7 @@ fn read_ply(path: &Path) -> Result<RawMesh, RenderError> {
     let mut file =
         std::fs::File::open(path).map_err(|e| file_error(path, "file", e.to_string()))?;
     let ply = Parser::<DefaultElement>::new()
-        .read_ply(&mut file)
+        .read_ply(&mut std::io::BufReader::new(&mut file))
         .map_err(|e| file_error(path, "file", format!("not a readable PLY: {e}")))?;
     let vertices = ply
         .payload
@@ -155,11 +270,10 @@ fn read_ply(path: &Path) -> Result<RawMesh, RenderError> {
             uvs.push([value(u)? as f32, value(v)? as f32]);
         }
     }
-    let faces = ply
-        .payload
-        .get("face")
-        .ok_or_else(|| file_error(path, "face", "missing".into()))?;
-    raw.polygons.reserve(faces.len());
+    let Some(faces) = ply.payload.get("face") else {
+        return Ok(raw);
+    };
+    let polygons = raw.polygons.insert(Vec::with_capacity(faces.len()));
     for (i, face) in faces.iter().enumerate() {
         let list = face
             .get("vertex_indices")
@@ -171,7 +285,7 @@ fn read_ply(path: &Path) -> Result<RawMesh, RenderError> {
                 "missing or not a list of indices".into(),
             )
         })?;
-        raw.polygons.push(indices);
+        polygons.push(indices);
     }
     Ok(raw)
 }
@@ -214,6 +328,7 @@ fn read_obj(path: &Path) -> Result<RawMesh, RenderError> {
     let (models, _materials) = tobj::load_obj(path, &options)
         .map_err(|e| file_error(path, "file", format!("not a readable OBJ: {e}")))?;
     let mut raw = RawMesh::default();
+    let mut polygons = Vec::new();
     let all =
         |has: fn(&tobj::Mesh) -> bool| !models.is_empty() && models.iter().all(|m| has(&m.mesh));
     if all(|m| !m.normals.is_empty()) {
@@ -264,11 +379,11 @@ fn read_obj(path: &Path) -> Result<RawMesh, RenderError> {
                     "face indices are truncated".into(),
                 )
             })?;
-            raw.polygons
-                .push(face.iter().map(|&i| i + offset).collect());
+            polygons.push(face.iter().map(|&i| i + offset).collect());
             start += arity;
         }
     }
+    raw.polygons = Some(polygons);
     Ok(raw)
 }
 

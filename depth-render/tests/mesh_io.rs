@@ -267,3 +267,97 @@ fn attributes_of_the_wrong_length_or_range_are_typed_errors() {
         "{error}"
     );
 }
+
+#[test]
+fn vertices_round_trip_with_and_without_normals() {
+    use depth_render::{Vertices, load_vertices, write_ply};
+    use nalgebra::{Point3, Vector3};
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("cloud.ply");
+    let positions = vec![Point3::new(0.1, -0.2, 0.3), Point3::new(1.0, 2.0, 3.0)];
+    let normals = vec![Vector3::x(), Vector3::new(0.0, 0.6, 0.8)];
+    for normals in [None, Some(normals)] {
+        let mut bytes = Vec::new();
+        write_ply(&mut bytes, &positions, normals.as_deref(), &[], 1.0).unwrap();
+        std::fs::write(&path, bytes).unwrap();
+        let expected = Vertices {
+            positions: positions.clone(),
+            normals: normals.clone(),
+        };
+        assert_eq!(load_vertices(&path, 1.0).unwrap(), expected);
+        // A point cloud is no mesh: it has no faces.
+        assert!(
+            load_mesh(&path, 1.0)
+                .unwrap_err()
+                .to_string()
+                .contains("face: missing")
+        );
+    }
+    let millimetres = load_vertices(&path, 1000.0).unwrap();
+    assert!((millimetres.positions[1].z - 3000.0).abs() < 1e-3);
+}
+
+#[test]
+fn a_written_mesh_loads_as_the_same_mesh() {
+    use depth_render::{Primitive, write_ply};
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("can.ply");
+    let can = Primitive::Cylinder {
+        radius: 0.04,
+        height: 0.1,
+        segments: 24,
+    }
+    .mesh()
+    .unwrap();
+    let mut bytes = Vec::new();
+    write_ply(
+        &mut bytes,
+        can.positions(),
+        can.normals(),
+        can.triangles(),
+        1e3,
+    )
+    .unwrap();
+    std::fs::write(&path, bytes).unwrap();
+    let back = load_mesh(&path, 1e-3).unwrap();
+    assert_eq!(back.triangles(), can.triangles());
+    for (a, b) in back.positions().iter().zip(can.positions()) {
+        assert!((a - b).norm() < 1e-6, "{a} {b}");
+    }
+}
+
+#[test]
+fn malformed_vertex_files_name_the_field() {
+    use depth_render::load_vertices;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bad.ply");
+    let header = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+    let mut binary = header.replace("ascii", "binary_little_endian").into_bytes();
+    for value in [0f32, 0.0, 0.0, 1.0, f32::NAN, 1.0] {
+        binary.extend_from_slice(&value.to_le_bytes());
+    }
+    std::fs::write(&path, binary).unwrap();
+    let message = load_vertices(&path, 1.0).unwrap_err().to_string();
+    assert!(message.contains("vertex[1].y"), "{message}");
+    std::fs::write(&path, format!("{header}0 0 0\n")).unwrap();
+    let message = load_vertices(&path, 1.0).unwrap_err().to_string();
+    assert!(
+        message.contains("bad.ply") && message.contains("file"),
+        "{message}"
+    );
+    let with_normals = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+        property float z\nproperty float nx\nproperty float ny\nproperty float nz\nend_header\n";
+    std::fs::write(&path, format!("{with_normals}0 0 0 0 0 0\n")).unwrap();
+    let message = load_vertices(&path, 1.0).unwrap_err().to_string();
+    assert!(
+        message.contains("vertex[0].nx") && message.contains("zero-length"),
+        "{message}"
+    );
+    let missing = load_vertices(&dir.path().join("none.ply"), 1.0)
+        .unwrap_err()
+        .to_string();
+    assert!(missing.contains("none.ply"), "{missing}");
+    std::fs::write(&path, "ply\nformat ascii 1.0\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n").unwrap();
+    let message = load_vertices(&path, 1.0).unwrap_err().to_string();
+    assert!(message.contains("vertex: missing"), "{message}");
+}

@@ -167,12 +167,7 @@ fn write_checkpoint(
     let json = dir.join(CHECKPOINT_FILE);
     let text = serde_json::to_string_pretty(&info)
         .map_err(|e| ModelError::checkpoint(&json, e.to_string()))?;
-    write_then_rename(&json, |tmp| {
-        std::fs::write(tmp, text.as_bytes()).map_err(|source| ModelError::Io {
-            path: tmp.to_path_buf(),
-            source,
-        })
-    })?;
+    write_text_atomically(&json, &text)?;
     remove_stale(dir, &[weights, optimizer.unwrap_or_default()]);
     Ok(())
 }
@@ -206,7 +201,17 @@ fn write_tensors(path: &Path, named: &[(String, Tensor)]) -> Result<(), ModelErr
     })
 }
 
-/// Runs `write` on `path` + `.tmp`, then renames it to `path`.
+/// Writes `text` to `path` through [`write_then_rename`].
+pub(crate) fn write_text_atomically(path: &Path, text: &str) -> Result<(), ModelError> {
+    write_then_rename(path, |tmp| {
+        std::fs::write(tmp, text.as_bytes()).map_err(|source| ModelError::Io {
+            path: tmp.to_path_buf(),
+            source,
+        })
+    })
+}
+
+/// Runs `write` on `path` + `.tmp`, then renames it to `path`: the crate's one atomic write.
 fn write_then_rename(
     path: &Path,
     write: impl FnOnce(&Path) -> Result<(), ModelError>,

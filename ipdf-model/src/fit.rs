@@ -10,6 +10,7 @@ use rand_chacha::ChaCha8Rng;
 use so3_grid::locate;
 use tch::{Kind, Tensor};
 
+use crate::checkpoint::write_text_atomically;
 use crate::loss::check_label_sets;
 use crate::train::{StepReport, Trainer};
 use crate::{ImplicitPdf, ModelError, Predictor};
@@ -235,18 +236,11 @@ fn read_log(run_dir: &Path, epochs_done: u64) -> Vec<String> {
 }
 
 fn write_log(run_dir: &Path, lines: &[String]) -> Result<(), ModelError> {
-    let path = run_dir.join(TRAIN_LOG);
-    let tmp = run_dir.join(format!("{TRAIN_LOG}.tmp"));
     let mut text = String::from(LOG_HEADER);
     text.push('\n');
     for line in lines {
         text.push_str(line);
         text.push('\n');
     }
-    let io = |path: &Path| {
-        let path = path.to_path_buf();
-        move |source| ModelError::Io { path, source }
-    };
-    std::fs::write(&tmp, text).map_err(io(&tmp))?;
-    std::fs::rename(&tmp, &path).map_err(io(&path))
+    write_text_atomically(&run_dir.join(TRAIN_LOG), &text)
 }

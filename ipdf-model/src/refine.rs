@@ -321,7 +321,7 @@ fn sibling_slope(
 /// point), capped at `exp(rise)`, the highest value among the cell's siblings, so that a steep
 /// slope in the tail far from any mass cannot inflate the cell past what its neighbourhood holds.
 /// On the quick pipeline's trained models this takes the gap between this normaliser and
-/// dense level 4's from 0.0004–0.028 nats to 0.0002–0.0044 (`examples/examples/refine_accuracy.rs`).
+/// dense level 4's from 0.0004–0.028 nats to 0.0002–0.0044 (`examples/ipdf/examples/refine_accuracy.rs`).
 fn slope_factor(slope: f64, level: u8, rise: f64) -> f64 {
     let radius = (6.0 * cell_volume(level) / std::f64::consts::PI).cbrt();
     let second_order = 1.0 + (slope * radius).powi(2) / 10.0;

@@ -1,8 +1,6 @@
 //! The crate's one error type.
 
-use std::path::PathBuf;
-
-/// Everything that can go wrong in this crate: bad input clouds, bad options, I/O.
+/// Everything that can go wrong in this crate: bad input clouds, bad options, singular solves.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum RegistrationError {
@@ -77,16 +75,6 @@ pub enum RegistrationError {
     SingularSystem {
         /// The stage.
         stage: &'static str,
-    },
-    /// A point-cloud file that could not be read or is malformed.
-    #[error("{path}: {field}: {reason}", path = path.display())]
-    CloudFile {
-        /// The file.
-        path: PathBuf,
-        /// The element or property at fault (`"vertex[12].x"`, `"header"`).
-        field: String,
-        /// What is wrong.
-        reason: String,
     },
 }
 

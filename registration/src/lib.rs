@@ -1,8 +1,8 @@
 //! Point-cloud registration: voxel downsampling, PCA normals, FPFH features (Rusu et al. 2009),
 //! Fast Global Registration (Zhou, Park, Koltun 2016) and ICP (point-to-point, point-to-plane).
 //!
-//! - [`PointCloud`]: positions (metres, f32) and optional unit normals; [`read_ply`] /
-//!   [`write_ply`].
+//! - [`PointCloud`]: positions (metres, f32) and optional unit normals (files are read and
+//!   written by `depth_render::load_vertices` / `write_ply`, or by your own code).
 //! - Stages, each usable alone: [`downsample_voxel`], [`PointIndex`] (k-d tree), [`estimate_normals`],
 //!   [`compute_fpfh`], [`align_fgr`], [`refine_icp`].
 //! - [`prepare_cloud`] runs the first stages once per cloud into a [`PreparedCloud`], so a
@@ -44,7 +44,6 @@ mod icp;
 mod matching;
 mod neighbours;
 mod normals;
-mod ply;
 mod prepare;
 mod register;
 mod twist;
@@ -57,7 +56,6 @@ pub use fpfh::{FPFH_LEN, Fpfh, FpfhOptions, compute_fpfh};
 pub use icp::{Alignment, IcpMethod, IcpOptions, RobustKernel, overlap, refine_icp};
 pub use neighbours::{Neighbour, PointIndex};
 pub use normals::{NormalOptions, NormalOrientation, estimate_normals};
-pub use ply::{read_ply, write_ply};
 pub use prepare::{PrepareOptions, PreparedCloud, prepare_cloud};
 pub use register::{RegisterOptions, Registration, register};
 pub use twist::kabsch;

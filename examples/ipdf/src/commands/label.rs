@@ -1,0 +1,108 @@
+//! `ipdf label`: pseudo ground-truth pose sets for every instance of a BOP split (see
+//! the `pseudo-label` crate), and optionally their scores against the ground truth.
+use super::choice::choice;
+use std::path::PathBuf;
+
+use anyhow::Result;
+use bop_dataset::{BopDataset, DatasetInfo};
+use ipdf::progress::bar;
+use pseudo_label::{DatasetOptions, LabelOptions, Shard, Strategy, label_dataset, report};
+use serde_json::json;
+
+/// Arguments of `ipdf label`.
+#[derive(Debug, clap::Args)]
+pub struct LabelArgs {
+    /// BOP dataset folder.
+    #[arg(long)]
+    pub dataset: PathBuf,
+    /// Split folder to label.
+    #[arg(long, default_value = "train")]
+    pub split: String,
+    /// Folder of the meshes and models_info.json, inside the dataset (T-LESS: models_cad).
+    #[arg(long, default_value = "models")]
+    pub models_dir: String,
+    /// Metres per mesh unit (BOP meshes are in millimetres).
+    #[arg(long, default_value_t = 0.001)]
+    pub mesh_scale: f64,
+    /// The object of every mask, for a dataset without scene_gt.json.
+    #[arg(long)]
+    pub obj_id: Option<u32>,
+    /// K: labels per instance at most.
+    #[arg(long, default_value_t = 8)]
+    pub labels: usize,
+    /// M: global-alignment trials per label.
+    #[arg(long, default_value_t = 3)]
+    pub trials: usize,
+    /// How labels after the first are found: `reseed` (ICP from the best pose composed with
+    /// the model's self-symmetries) or `trials` (independent trials, as in the paper).
+    #[arg(long, value_parser = choice::<Strategy>(), default_value = "reseed")]
+    pub strategy: Strategy,
+    /// Voxel size as a fraction of the object's diameter.
+    #[arg(long, default_value_t = 0.025)]
+    pub voxel_fraction: f64,
+    /// Drop labels whose render-and-compare score exceeds this fraction of the diameter…
+    #[arg(long, default_value_t = 0.015)]
+    pub max_score: f64,
+    /// …and this many metres (the sensor noise's own score).
+    #[arg(long, default_value_t = 0.003)]
+    pub score_floor: f64,
+    /// Merge labels closer than this many degrees.
+    #[arg(long, default_value_t = 2.0)]
+    pub merge_angle: f64,
+    /// Read depth and masks at every n-th pixel of every n-th row (1: all; the observed cloud
+    /// is downsampled to the voxel size anyway).
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=8))]
+    pub pixel_stride: u32,
+    /// Label only scenes k with k mod n = i (sorted order), for job arrays: `i/n`, 0 ≤ i < n.
+    #[arg(long, default_value = "0/1")]
+    pub shard: String,
+    /// Score the labels against scene_gt.json: JSON here, a markdown table beside it (.md).
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+}
+
+/// Runs `ipdf label`; returns the run's counts and, with `--report`, the scores.
+pub fn run(args: &LabelArgs, seed: u64) -> Result<serde_json::Value> {
+    let dataset = BopDataset::open(&args.dataset, &args.models_dir)?;
+    let dataset_options = DatasetOptions {
+        split: args.split.clone(),
+        mesh_scale: args.mesh_scale,
+        obj_id: args.obj_id,
+        shard: Shard::parse(&args.shard)?,
+    };
+    let options = LabelOptions {
+        labels: args.labels,
+        trials: args.trials,
+        strategy: args.strategy,
+        voxel_fraction: args.voxel_fraction,
+        max_score: args.max_score,
+        score_floor: args.score_floor,
+        merge_angle_deg: args.merge_angle,
+        pixel_stride: args.pixel_stride,
+        seed,
+        ..LabelOptions::default()
+    };
+    let progress = bar(dataset.image_count(&args.split)? as u64, "images");
+    let summary = label_dataset(&dataset, &dataset_options, &options, &progress)?;
+    progress.finish_and_clear();
+    let mut result = serde_json::to_value(&summary)?;
+    let rate = |count: usize| count as f64 / summary.seconds.max(1e-9);
+    result["failed"] = json!(summary.failures.values().sum::<usize>());
+    result["images_per_s"] = json!(rate(summary.images));
+    result["instances_per_s"] = json!(rate(summary.instances));
+    if let Some(path) = &args.report {
+        let info = dataset.read_info()?.unwrap_or_else(|| DatasetInfo {
+            variant: args
+                .dataset
+                .file_name()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .into(),
+            ..DatasetInfo::default()
+        });
+        let scores = report(&dataset, &args.split, &info.names, &info.variant)?;
+        scores.write(path)?;
+        result["report"] = serde_json::to_value(&scores)?;
+    }
+    Ok(result)
+}

@@ -1,0 +1,52 @@
+//! `ipdf pipeline`: the whole method on synthetic data (see `ipdf::pipeline`); this module maps
+//! the flags onto a [`Plan`].
+use std::path::PathBuf;
+
+use anyhow::Result;
+use ipdf::pipeline::{Plan, Preset, run_pipeline};
+
+use super::choice::choice;
+
+/// Arguments of `ipdf pipeline`.
+#[derive(Debug, clap::Args)]
+pub struct PipelineArgs {
+    /// How big a run: `quick` (minutes on a laptop CPU: 800 training frames per object, a small
+    /// CNN on 48-pixel crops) or `paper` (the paper's scale, GPU advised: 20,000 frames per
+    /// variant, ResNet-18 on 224-pixel crops, 50 epochs of 200 steps of 64; with and without
+    /// occlusion, and two more backbones).
+    #[arg(long, value_parser = choice::<Preset>(), default_value = "quick")]
+    pub preset: Preset,
+    /// Run folder (a rerun with the same settings skips finished stages; one with other
+    /// settings is refused: see `pipeline_config.json`).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Override the preset's training frames per object (uniform dataset).
+    #[arg(long)]
+    pub frames: Option<usize>,
+    /// Override the preset's validation frames per object.
+    #[arg(long)]
+    pub val_frames: Option<usize>,
+    /// Override the preset's frames per object of the textured dataset.
+    #[arg(long)]
+    pub texture_frames: Option<usize>,
+    /// Override the preset's epochs.
+    #[arg(long)]
+    pub epochs: Option<u64>,
+    /// Override the preset's steps per epoch.
+    #[arg(long)]
+    pub steps_per_epoch: Option<u64>,
+}
+
+/// Runs `ipdf pipeline`; returns where the report is and the time per stage.
+pub fn run(args: &PipelineArgs, seed: u64) -> Result<serde_json::Value> {
+    let preset = args.preset.plan();
+    let plan = Plan {
+        frames: args.frames.unwrap_or(preset.frames),
+        val_frames: args.val_frames.unwrap_or(preset.val_frames),
+        texture_frames: args.texture_frames.unwrap_or(preset.texture_frames),
+        epochs: args.epochs.unwrap_or(preset.epochs),
+        steps_per_epoch: args.steps_per_epoch.unwrap_or(preset.steps_per_epoch),
+        ..preset
+    };
+    Ok(serde_json::to_value(run_pipeline(&args.out, &plan, seed)?)?)
+}

@@ -1,0 +1,129 @@
+//! `ipdf train`: an Implicit-PDF model of one object from a BOP dataset, on single, analytical
+//! or pseudo label sets; resumes a run folder that holds a checkpoint.
+use super::choice::choice;
+use std::path::PathBuf;
+
+use anyhow::{Result, bail};
+use ipdf::progress::bar;
+use ipdf::training::{TrainRequest, train_model};
+use ipdf::training_data::LabelSource;
+use ipdf_model::{EncoderKind, ModelConfig};
+
+/// The encoder named on the command line.
+pub fn parse_encoder(name: &str) -> Result<EncoderKind, String> {
+    EncoderKind::ALL
+        .into_iter()
+        .find(|kind| kind.name() == name)
+        .ok_or_else(|| {
+            let names: Vec<_> = EncoderKind::ALL.iter().map(|k| k.name()).collect();
+            format!("{name}: expected one of {}", names.join(", "))
+        })
+}
+
+/// Arguments of `ipdf train`.
+#[derive(Debug, clap::Args)]
+pub struct TrainArgs {
+    /// BOP dataset folder.
+    #[arg(long)]
+    pub dataset: PathBuf,
+    /// Label sets: the GT pose alone, the GT pose with the symmetries of models_info.json, or
+    /// the pseudo labels of `ipdf label`.
+    #[arg(long, value_parser = choice::<LabelSource>())]
+    pub labels: LabelSource,
+    /// Run folder: checkpoint, run.json, train_log.csv (a folder with a checkpoint resumes).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Training split.
+    #[arg(long, default_value = "train")]
+    pub split: String,
+    /// Folder of the meshes and models_info.json, inside the dataset (T-LESS: models_cad).
+    #[arg(long, default_value = "models")]
+    pub models_dir: String,
+    /// Validation split: LLH of its ground-truth symmetry sets every epoch (of its labels of
+    /// the training kind when it has no ground truth; skipped when there is no such folder).
+    #[arg(long, default_value = "val")]
+    pub val_split: String,
+    /// The object, by id (needed when the dataset has several).
+    #[arg(long)]
+    pub obj_id: Option<u32>,
+    /// The object, by name (`dataset_info.json` of `ipdf synth`).
+    #[arg(long, conflicts_with = "obj_id")]
+    pub object: Option<String>,
+    /// Image encoder: resnet18, resnet18-2, convnext-tiny, small-cnn.
+    #[arg(long, default_value = "resnet18", value_parser = parse_encoder)]
+    pub encoder: EncoderKind,
+    /// Side of the square input crop (pixels).
+    #[arg(long, default_value_t = 224)]
+    pub input_size: usize,
+    /// Widths of the head's layers, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "256,256,256,256")]
+    pub head: Vec<i64>,
+    /// Epochs.
+    #[arg(long, default_value_t = 50)]
+    pub epochs: u64,
+    /// Steps per epoch.
+    #[arg(long, default_value_t = 200)]
+    pub steps_per_epoch: u64,
+    /// Images per step.
+    #[arg(long, default_value_t = 64)]
+    pub batch_size: usize,
+    /// Peak learning rate (linear warm-up over 5% of the steps, then cosine decay to 0).
+    #[arg(long, default_value_t = 1e-4)]
+    pub learning_rate: f64,
+    /// The paper's occlusion augmentation (rectangles over 10–50% of 80% of the crops).
+    #[arg(long)]
+    pub occlusion: bool,
+    /// Query rotations per image and step: the rotated grid of this level (2: 4,608, as the
+    /// reference; 1: 576 for quick CPU runs).
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(0..=3))]
+    pub query_level: u8,
+    /// Steps per turn of a continuous symmetry in analytical label sets.
+    #[arg(long, default_value_t = 36)]
+    pub continuous_steps: usize,
+    /// Pretrained encoder weights (.safetensors with torchvision names).
+    #[arg(long)]
+    pub pretrained: Option<PathBuf>,
+}
+
+/// Runs `ipdf train`; returns the last epoch's figures ([`TrainResult`]).
+pub fn run(args: &TrainArgs, seed: u64) -> Result<serde_json::Value> {
+    if args.continuous_steps == 0 {
+        bail!("--continuous-steps must be at least 1");
+    }
+    if args.batch_size == 0 {
+        bail!("--batch-size must be at least 1");
+    }
+    if args.out.exists() && !args.out.is_dir() {
+        bail!("--out {}: exists and is not a folder", args.out.display());
+    }
+    let request = TrainRequest {
+        dataset: args.dataset.clone(),
+        models_dir: args.models_dir.clone(),
+        split: args.split.clone(),
+        val_split: args.val_split.clone(),
+        obj_id: args.obj_id,
+        object_name: args.object.clone(),
+        labels: args.labels,
+        model: ModelConfig {
+            encoder: args.encoder,
+            input_size: args.input_size as i64,
+            head_sizes: args.head.clone(),
+            seed,
+            ..ModelConfig::default()
+        },
+        epochs: args.epochs,
+        steps_per_epoch: args.steps_per_epoch,
+        batch_size: args.batch_size,
+        learning_rate: args.learning_rate,
+        occlusion: args.occlusion,
+        query_level: args.query_level,
+        continuous_steps: args.continuous_steps,
+        pretrained: args.pretrained.clone(),
+        out: args.out.clone(),
+        seed,
+    };
+    let progress = bar(args.epochs * args.steps_per_epoch, "steps");
+    let result = train_model(&request, &progress)?;
+    progress.finish_and_clear();
+    Ok(serde_json::to_value(result)?)
+}

@@ -1,0 +1,205 @@
+//! The paper's scores of a trained model on examples with ground truth: for each crop, the
+//! normalised distribution on the grid (refined hierarchically, or dense), then LLH (mean
+//! log-density over the ground-truth symmetry set), MAAD (expected distance of a sample to the
+//! nearest ground-truth rotation) and Recall MAAD (mean distance of each ground-truth rotation
+//! to the nearest predicted one), averaged over crops.
+use std::path::{Path, PathBuf};
+
+use indicatif::ProgressBar;
+use ipdf_model::{CellMasses, ImplicitPdf, Predictor, RefineOptions, default_device};
+use metrics::{Distribution, GridCell, RECALL_THRESHOLD, maad, recall_maad};
+use serde::{Deserialize, Serialize};
+use so3_grid::Grid;
+
+use crate::PipelineError;
+use crate::plots::plot_distribution;
+use crate::run_info::RunInfo;
+use crate::training_data::{ExampleOptions, Examples, crop_tensor, load_examples, to_unit_floats};
+
+/// Mean scores over the crops evaluated.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Scores {
+    /// Crops evaluated.
+    pub images: usize,
+    /// Mean log-likelihood of the ground-truth set (−2.29 for a uniform density).
+    pub llh: f64,
+    /// Mean absolute angular deviation, degrees.
+    pub maad_deg: f64,
+    /// Recall mean absolute angular deviation, degrees.
+    pub recall_maad_deg: f64,
+    /// The most network queries one crop took.
+    pub queries_per_image: usize,
+}
+
+/// Scores `model` on every crop of `examples`, its distribution evaluated on the cells
+/// `grid` describes ([`RefineOptions::to_level`] for the hierarchical evaluation,
+/// [`RefineOptions::dense`] for every cell of a level); `progress` advances by one per crop.
+/// LLH is the reference implementation's: the density `exp(F(R) − ln Z)` at each ground-truth
+/// rotation itself, `Z` from the grid; MAAD and Recall MAAD come from the `metrics` crate on
+/// the cells' masses. Fails when the examples have no ground truth.
+pub fn evaluate(
+    model: &ImplicitPdf,
+    examples: &Examples,
+    grid: &RefineOptions,
+    progress: &ProgressBar,
+) -> Result<Scores, PipelineError> {
+    let Some(truths) = &examples.truth_sets else {
+        return Err(PipelineError::option(
+            "dataset",
+            "evaluation needs the split's scene_gt.json",
+        ));
+    };
+    let mut predictor = Predictor::new(model);
+    let (mut sum_llh, mut sum_maad, mut sum_recall, mut queries) = (0.0, 0.0, 0.0, 0);
+    for (i, truth) in truths.iter().enumerate() {
+        let crop = to_unit_floats(&examples.crops.get(i as i64));
+        let masses = predictor.hierarchical(&crop, grid)?;
+        let densities = predictor.log_densities(&crop, truth, &masses)?;
+        sum_llh += densities.iter().sum::<f64>() / densities.len().max(1) as f64;
+        let distribution = cell_distribution(&masses)?;
+        sum_maad += maad(&distribution, truth)?;
+        sum_recall += recall_maad(&distribution, truth, RECALL_THRESHOLD)?;
+        queries = queries.max(masses.queries);
+        progress.inc(1);
+    }
+    let n = truths.len().max(1) as f64;
+    Ok(Scores {
+        images: truths.len(),
+        llh: sum_llh / n,
+        maad_deg: sum_maad / n,
+        recall_maad_deg: sum_recall / n,
+        queries_per_image: queries,
+    })
+}
+
+/// Which trained run to score, on what and on which grid.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EvalRequest {
+    /// The run folder of `ipdf train`.
+    pub checkpoint: PathBuf,
+    /// Another copy of the dataset (default: the one the model was trained on).
+    pub dataset: Option<PathBuf>,
+    /// Another models folder of the dataset (default: the one the model was trained with).
+    pub models_dir: Option<String>,
+    /// The split scored (it needs `scene_gt.json`).
+    pub split: String,
+    /// The level of the evaluation grid.
+    pub level: u8,
+    /// Every cell of the level (up to level 5), else level 2 refined hierarchically.
+    pub dense: bool,
+}
+
+/// The scores of a run: the JSON of `ipdf eval` and the pipeline's `eval_levelN.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EvalResult {
+    /// The object's name.
+    pub object: String,
+    /// The object's id.
+    pub obj_id: u32,
+    /// The labels the model was trained on.
+    pub labels: String,
+    /// The split scored.
+    pub split: String,
+    /// The level of the evaluation grid.
+    pub level: u8,
+    /// `hierarchical` or `dense`.
+    pub evaluation: String,
+    /// The most network queries one crop took.
+    pub queries_per_image: usize,
+    /// Crops scored.
+    pub images: usize,
+    /// Mean log-likelihood of the ground-truth sets.
+    pub llh: f64,
+    /// Mean absolute angular deviation (degrees).
+    pub maad_deg: f64,
+    /// Recall mean absolute angular deviation (degrees).
+    pub recall_maad_deg: f64,
+}
+
+/// Scores the run of `request` on its split; `progress` has its length set to the crops and
+/// advances by one per crop.
+pub fn evaluate_run(
+    request: &EvalRequest,
+    progress: &ProgressBar,
+) -> Result<EvalResult, PipelineError> {
+    let grid = if request.dense {
+        if request.level > 5 {
+            return Err(PipelineError::option(
+                "level",
+                format!(
+                    "--dense goes up to level 5 (2,359,296 cells); got --level {}",
+                    request.level
+                ),
+            ));
+        }
+        RefineOptions::dense(request.level)
+    } else {
+        RefineOptions::to_level(request.level)
+    };
+    let mut info = RunInfo::read(&request.checkpoint)?;
+    if let Some(models_dir) = &request.models_dir {
+        info.models_dir.clone_from(models_dir);
+    }
+    let dataset = info.dataset(request.dataset.as_deref())?;
+    let model = ImplicitPdf::load(&request.checkpoint, default_device())?;
+    let size = model.config().input_size as usize;
+    let options = ExampleOptions::evaluation(&request.split, info.obj_id, size);
+    let examples = load_examples(&dataset, &options)?;
+    progress.set_length(examples.instances.len() as u64);
+    let scores = evaluate(&model, &examples, &grid, progress)?;
+    Ok(EvalResult {
+        object: info.object,
+        obj_id: info.obj_id,
+        labels: info.labels,
+        split: request.split.clone(),
+        level: request.level,
+        evaluation: if request.dense {
+            "dense"
+        } else {
+            "hierarchical"
+        }
+        .into(),
+        queries_per_image: scores.queries_per_image,
+        images: scores.images,
+        llh: scores.llh,
+        maad_deg: scores.maad_deg,
+        recall_maad_deg: scores.recall_maad_deg,
+    })
+}
+
+/// The file the pipeline keeps a run's scores at `level` in.
+pub fn eval_file(run_dir: &Path, level: u8) -> PathBuf {
+    run_dir.join(format!("eval_level{level}.json"))
+}
+
+/// The cells and masses of a (hierarchical or dense) evaluation as a `metrics` distribution.
+pub fn cell_distribution(masses: &CellMasses) -> Result<Distribution, PipelineError> {
+    let cells = masses
+        .cells
+        .iter()
+        .map(|&(level, index)| GridCell { level, index })
+        .collect();
+    Ok(Distribution::from_cells(cells, masses.masses.clone())?)
+}
+
+/// The Implicit-PDF figure of `model`'s distribution for an 8-bit crop (`[3, S, S]`) on the
+/// `level` grid, with `truth` drawn over it.
+pub fn distribution_figure(
+    model: &ImplicitPdf,
+    crop: &[u8],
+    truth: &[nalgebra::UnitQuaternion<f64>],
+    level: u8,
+    title: &str,
+) -> Result<image::RgbImage, PipelineError> {
+    let size = model.config().input_size as usize;
+    let grid = Grid::new(level).map_err(|e| PipelineError::option("level", e.to_string()))?;
+    let masses = Predictor::new(model).probabilities(&crop_tensor(crop, size), level)?;
+    Ok(plot_distribution(
+        crop,
+        size,
+        &grid.rotations(),
+        &masses,
+        truth,
+        title,
+    ))
+}

@@ -1,0 +1,273 @@
+//! What a pipeline run does: the presets, the plan with its overrides, and
+//! `pipeline_config.json`, which records the settings a run folder was started with so that a
+//! rerun with other settings is refused rather than mixed in.
+use std::path::Path;
+
+use bop_dataset::{read_json, write_json};
+use ipdf_model::EncoderKind;
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+
+use crate::PipelineError;
+
+/// A size of run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Preset {
+    /// Minutes on a laptop CPU: 800 training frames per object, a small CNN on 48-pixel crops.
+    Quick,
+    /// The paper's scale (GPU advised): 20,000 frames per variant, ResNet-18 on 224-pixel crops,
+    /// 50 epochs of 200 steps of 64; with and without occlusion, and two more backbones.
+    Paper,
+}
+
+impl Preset {
+    /// Every preset.
+    pub const ALL: [Self; 2] = [Self::Quick, Self::Paper];
+
+    /// `quick` or `paper`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Quick => "quick",
+            Self::Paper => "paper",
+        }
+    }
+
+    /// What the preset runs.
+    pub fn plan(self) -> Plan {
+        match self {
+            Self::Quick => Plan {
+                preset: self,
+                frames: 800,
+                val_frames: 50,
+                texture_frames: 20,
+                encoder: EncoderKind::SmallCnn,
+                input_size: 48,
+                head: vec![64, 64],
+                epochs: 32,
+                steps_per_epoch: 50,
+                batch_size: 16,
+                learning_rate: 4e-3,
+                query_level: 1,
+                eval_level: 4,
+                occlusion: vec![false],
+                backbones: vec![],
+                concurrent_models: 2,
+            },
+            Self::Paper => Plan {
+                preset: self,
+                frames: 6667,
+                val_frames: 500,
+                texture_frames: 6667,
+                encoder: EncoderKind::Resnet18,
+                input_size: 224,
+                head: vec![256, 256, 256, 256],
+                epochs: 50,
+                steps_per_epoch: 200,
+                batch_size: 64,
+                learning_rate: 1e-4,
+                query_level: 2,
+                eval_level: 4,
+                occlusion: vec![false, true],
+                backbones: vec![EncoderKind::Resnet18Stage3, EncoderKind::ConvnextTiny],
+                concurrent_models: 1,
+            },
+        }
+    }
+}
+
+impl std::str::FromStr for Preset {
+    type Err = String;
+
+    /// A preset by its [`Preset::name`].
+    fn from_str(name: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|p| p.name() == name)
+            .ok_or_else(|| format!("{name:?}: expected quick or paper"))
+    }
+}
+
+/// What a run does: a preset's plan, possibly with frames and epochs overridden.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plan {
+    /// The preset it started from.
+    pub preset: Preset,
+    /// Training frames per object of the uniform dataset.
+    pub frames: usize,
+    /// Validation frames per object of the uniform dataset.
+    pub val_frames: usize,
+    /// Frames per object of the textured dataset (labelled, not trained on).
+    pub texture_frames: usize,
+    /// The encoder of the Single / Analytical / Pseudo models.
+    pub encoder: EncoderKind,
+    /// Side of the square crops (pixels).
+    pub input_size: usize,
+    /// Widths of the head's layers.
+    pub head: Vec<i64>,
+    /// Epochs.
+    pub epochs: u64,
+    /// Steps per epoch.
+    pub steps_per_epoch: u64,
+    /// Images per step.
+    pub batch_size: usize,
+    /// Peak learning rate.
+    pub learning_rate: f64,
+    /// Grid level of the training queries.
+    pub query_level: u8,
+    /// Grid level of the scores.
+    pub eval_level: u8,
+    /// Occlusion settings of the Single / Analytical / Pseudo models.
+    pub occlusion: Vec<bool>,
+    /// Encoders also trained on pseudo labels (the paper's backbone comparison).
+    pub backbones: Vec<EncoderKind>,
+    /// Models trained at once, each on one CPU thread: small models leave a second core
+    /// partly idle, so two at a time finish sooner than one on two threads.
+    pub concurrent_models: usize,
+}
+
+impl Plan {
+    /// Steps each model trains for.
+    pub fn total_steps(&self) -> u64 {
+        self.epochs * self.steps_per_epoch
+    }
+
+    /// The settings that decide the run's outputs, as recorded.
+    pub fn config(&self, seed: u64) -> PipelineConfig {
+        let head: Vec<String> = self.head.iter().map(i64::to_string).collect();
+        PipelineConfig {
+            preset: self.preset.name().into(),
+            seed,
+            frames_per_object: self.frames,
+            val_frames_per_object: self.val_frames,
+            texture_frames_per_object: self.texture_frames,
+            encoder: self.encoder.name().into(),
+            input_size: self.input_size,
+            head: head.join(","),
+            epochs: self.epochs,
+            steps_per_epoch: self.steps_per_epoch,
+            batch_size: self.batch_size,
+            learning_rate: self.learning_rate,
+            query_level: self.query_level,
+            eval_level: self.eval_level,
+            occlusion: self.occlusion.clone(),
+            backbones: self.backbones.iter().map(|b| b.name().into()).collect(),
+            training_data: "uniform".into(),
+        }
+    }
+}
+
+/// `pipeline_config.json`, and the `"config"` of `report.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PipelineConfig {
+    /// `quick` or `paper`.
+    pub preset: String,
+    /// The run's seed.
+    pub seed: u64,
+    /// Training frames per object.
+    pub frames_per_object: usize,
+    /// Validation frames per object.
+    pub val_frames_per_object: usize,
+    /// Frames per object of the textured dataset.
+    pub texture_frames_per_object: usize,
+    /// The encoder's name.
+    pub encoder: String,
+    /// Crop side (pixels).
+    pub input_size: usize,
+    /// Head widths, comma-separated.
+    pub head: String,
+    /// Epochs.
+    pub epochs: u64,
+    /// Steps per epoch.
+    pub steps_per_epoch: u64,
+    /// Images per step.
+    pub batch_size: usize,
+    /// Peak learning rate.
+    pub learning_rate: f64,
+    /// Level of the training queries.
+    pub query_level: u8,
+    /// Level of the scores.
+    pub eval_level: u8,
+    /// Occlusion settings.
+    pub occlusion: Vec<bool>,
+    /// Encoders of the backbone comparison.
+    pub backbones: Vec<String>,
+    /// The dataset trained on.
+    pub training_data: String,
+}
+
+/// The file in the run folder recording the settings the run was started with.
+pub const CONFIG_FILE: &str = "pipeline_config.json";
+
+/// The keys of [`PipelineConfig`] set by command-line flags, and the flags.
+const FLAGS: [(&str, &str); 7] = [
+    ("preset", "--preset"),
+    ("seed", "--seed"),
+    ("frames_per_object", "--frames"),
+    ("val_frames_per_object", "--val-frames"),
+    ("texture_frames_per_object", "--texture-frames"),
+    ("epochs", "--epochs"),
+    ("steps_per_epoch", "--steps-per-epoch"),
+];
+
+/// The command-line flag that sets a key of [`PipelineConfig`], for error messages.
+fn flag_of(key: &str) -> String {
+    let flag = FLAGS
+        .iter()
+        .find(|f| f.0 == key)
+        .map_or("set by --preset", |f| f.1);
+    format!(" ({flag})")
+}
+
+/// Refuses a run folder whose recorded settings differ from `config`, naming the first that
+/// does (the settings given on the command line first): `pipeline_config.json`, or for a
+/// folder from an older version without one, the `"config"` of its `report.json`. A folder with
+/// neither is a new run, and `config` is recorded.
+pub fn check_and_record(out: &Path, config: &PipelineConfig) -> Result<(), PipelineError> {
+    let config_path = out.join(CONFIG_FILE);
+    let report_path = out.join("report.json");
+    let (path, recorded) = if config_path.exists() {
+        (&config_path, read_json(&config_path)?)
+    } else if report_path.exists() {
+        (&report_path, read_json(&report_path)?["config"].clone())
+    } else {
+        return Ok(write_json(&config_path, config)?);
+    };
+    let expected =
+        serde_json::to_value(config).map_err(|e| PipelineError::option("config", e.to_string()))?;
+    let (Some(recorded), Some(expected)) = (recorded.as_object(), expected.as_object()) else {
+        return Err(PipelineError::option(
+            "config",
+            format!("{}: not a JSON object", path.display()),
+        ));
+    };
+    let first = FLAGS.iter().map(|&(key, _)| key);
+    let rest = expected
+        .keys()
+        .map(String::as_str)
+        .filter(|key| !FLAGS.iter().any(|f| f.0 == *key));
+    for key in first.chain(rest) {
+        let Some(value) = expected.get(key) else {
+            continue;
+        };
+        // Keys an older report.json lacks are not compared.
+        let Some(found) = recorded
+            .get(key)
+            .or((path == &config_path).then_some(&Value::Null))
+        else {
+            continue;
+        };
+        if found != value {
+            return Err(PipelineError::option(
+                "config",
+                format!(
+                    "{}: {key}{}: the run in {} was made with {found}, this run asks for \
+                     {value}; rerun with the same settings to resume it, or choose another --out",
+                    path.display(),
+                    flag_of(key),
+                    out.display()
+                ),
+            ));
+        }
+    }
+    Ok(write_json(&config_path, config)?)
+}

@@ -1,0 +1,416 @@
+//! `ipdf pipeline`: the whole method on synthetic data, as one resumable run: synthesise the
+//! uniform and textured datasets → pseudo-label them → train Single, Analytical and Pseudo
+//! models per object on the uniform one → evaluate on its validation split → `report.md` /
+//! `report.json` with the paper's tables filled by measured numbers, and figures. Each stage
+//! calls the libraries with typed options, and is skipped when its outputs exist. The run's
+//! settings are recorded in `pipeline_config.json` when it starts, and a rerun into the same
+//! folder with other settings is refused.
+mod config;
+mod report;
+mod workers;
+
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use bop_dataset::{
+    BopDataset, read_json_as, read_models_info, read_scene_gt, write_atomically, write_json,
+};
+use ipdf_model::{ImplicitPdf, ModelConfig, TRAIN_LOG, default_device};
+use pseudo_label::{DatasetOptions, LabelOptions, LabelReport, Shard, label_dataset};
+use serde::{Deserialize, Serialize};
+use synth_data::{ObjectKind, SynthObject, SynthOptions, Variant, synthesize};
+
+pub use config::{CONFIG_FILE, PipelineConfig, Plan, Preset};
+pub use report::{FigureEntry, LabelAccuracy, ModelScores, Report, ScoreTable};
+pub use workers::on_threads;
+
+use crate::PipelineError;
+use crate::evaluation::{EvalRequest, EvalResult, distribution_figure, eval_file, evaluate_run};
+use crate::plots::{plot_training_curves, write_png};
+use crate::progress::bar;
+use crate::run_info::RunInfo;
+use crate::training::{TrainRequest, is_trained, train_model};
+use crate::training_data::{LabelSource, crop_files};
+
+/// The objects of the run.
+const OBJECTS: [ObjectKind; 3] = [ObjectKind::Can, ObjectKind::Box, ObjectKind::Bowl];
+/// The label types of the Single / Analytical / Pseudo models.
+const LABELS: [&str; 3] = ["single", "analytical", "pseudo"];
+
+/// What `ipdf pipeline` prints: where the report and figures are, and the time per stage.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PipelineSummary {
+    /// `report.md`.
+    pub report: PathBuf,
+    /// `report.json`.
+    pub report_json: PathBuf,
+    /// The figures' folder.
+    pub figures: PathBuf,
+    /// Seconds per stage of this invocation.
+    pub timing_s: BTreeMap<String, f64>,
+}
+
+/// One trained model of the run.
+#[derive(Debug, Clone, PartialEq)]
+struct ModelRun {
+    object: ObjectKind,
+    labels: LabelSource,
+    occlusion: bool,
+    encoder: ipdf_model::EncoderKind,
+    dir: PathBuf,
+}
+
+/// Runs (or resumes) the pipeline of `plan` into `out`.
+pub fn run_pipeline(out: &Path, plan: &Plan, seed: u64) -> Result<PipelineSummary, PipelineError> {
+    std::fs::create_dir_all(out)
+        .map_err(|e| bop_dataset::FileError::new(out, "folder", e.to_string()))?;
+    config::check_and_record(out, &plan.config(seed))?;
+    let mut timing = BTreeMap::new();
+    let mut stage = |name: &str, started: Instant| {
+        let seconds = started.elapsed().as_secs_f64();
+        timing.insert(name.to_string(), seconds);
+        eprintln!("pipeline: {name} done in {seconds:.0} s");
+    };
+    let started = Instant::now();
+    synthesize_datasets(out, plan, seed)?;
+    stage("synth", started);
+    let started = Instant::now();
+    let labels = label_datasets(out, seed)?;
+    stage("label", started);
+    let runs = model_runs(out, plan);
+    let started = Instant::now();
+    train_models(out, plan, &runs, seed)?;
+    stage("train", started);
+    let started = Instant::now();
+    let scores = evaluate_models(plan, &runs)?;
+    stage("eval", started);
+    let started = Instant::now();
+    let figures = draw_figures(out, plan, &runs)?;
+    stage("figures", started);
+
+    let report = report_of(plan, &runs, &scores, labels, timing, seed);
+    let summary = PipelineSummary {
+        report: out.join("report.md"),
+        report_json: out.join("report.json"),
+        figures: out.join("figures"),
+        timing_s: report.timing_s.clone(),
+    };
+    write_json(&summary.report_json, &report)?;
+    let text = report.to_markdown(&figures);
+    write_atomically(&summary.report, |f| f.write_all(text.as_bytes()))?;
+    eprintln!(
+        "pipeline: report {} and {}, figures in {}",
+        summary.report.display(),
+        summary.report_json.display(),
+        summary.figures.display()
+    );
+    Ok(summary)
+}
+
+/// The dataset folder of `variant`.
+fn data_dir(out: &Path, variant: Variant) -> PathBuf {
+    out.join("data").join(variant.name())
+}
+
+/// Stage 1, datasets: the uniform one to train and validate on, the textured one (training
+/// split) for the accuracy of its pseudo labels. Complete scenes are skipped.
+fn synthesize_datasets(out: &Path, plan: &Plan, seed: u64) -> Result<(), PipelineError> {
+    let splits = [
+        (Variant::Uniform, "train", plan.frames, seed),
+        (Variant::Uniform, "val", plan.val_frames, seed + 1),
+        (Variant::Texture, "train", plan.texture_frames, seed),
+    ];
+    for (variant, split, frames, split_seed) in splits {
+        let objects = OBJECTS
+            .into_iter()
+            .map(SynthObject::built_in)
+            .collect::<Result<Vec<_>, _>>()?;
+        let options = SynthOptions {
+            frames,
+            variant,
+            seed: split_seed,
+            ..SynthOptions::default()
+        };
+        let progress = bar((frames * objects.len()) as u64, "frames");
+        let dataset = BopDataset::new(&data_dir(out, variant));
+        synthesize(&dataset, split, &objects, &options, &progress)?;
+        progress.finish_and_clear();
+    }
+    Ok(())
+}
+
+/// Stage 2, pseudo labels of the training splits, scored against the ground truth
+/// (`labels_{variant}.json`, kept: a rerun reads them back).
+fn label_datasets(
+    out: &Path,
+    seed: u64,
+) -> Result<BTreeMap<String, BTreeMap<String, LabelAccuracy>>, PipelineError> {
+    let mut accuracy: BTreeMap<String, BTreeMap<String, LabelAccuracy>> = BTreeMap::new();
+    for variant in Variant::ALL {
+        let path = out.join(format!("labels_{}.json", variant.name()));
+        if !path.exists() {
+            let dataset = BopDataset::open(&data_dir(out, variant), "models")?;
+            let dataset_options = DatasetOptions {
+                split: "train".into(),
+                mesh_scale: 1e-3,
+                obj_id: None,
+                shard: Shard::ALL,
+            };
+            let options = LabelOptions {
+                seed,
+                ..LabelOptions::default()
+            };
+            let progress = bar(dataset.image_count("train")? as u64, "images");
+            label_dataset(&dataset, &dataset_options, &options, &progress)?;
+            progress.finish_and_clear();
+            let names = dataset.read_info()?.unwrap_or_default().names;
+            pseudo_label::report(&dataset, "train", &names, variant.name())?.write(&path)?;
+        }
+        let report: LabelReport = read_json_as(&path)?;
+        for (object, scores) in report.objects {
+            accuracy.entry(object).or_default().insert(
+                variant.name().into(),
+                LabelAccuracy {
+                    label_maad_deg: scores.label_maad_deg,
+                    coverage: scores.coverage,
+                },
+            );
+        }
+    }
+    Ok(accuracy)
+}
+
+/// Stage 3, the models: per object, Single, Analytical and Pseudo labels (with and without
+/// occlusion in the paper preset), and the pseudo-label models of other backbones.
+fn model_runs(out: &Path, plan: &Plan) -> Vec<ModelRun> {
+    let mut runs = Vec::new();
+    for object in OBJECTS {
+        for &occlusion in &plan.occlusion {
+            for labels in LabelSource::ALL {
+                runs.push((object, labels, occlusion, plan.encoder));
+            }
+        }
+        for &encoder in &plan.backbones {
+            runs.push((object, LabelSource::Pseudo, false, encoder));
+        }
+    }
+    runs.into_iter()
+        .map(|(object, labels, occlusion, encoder)| {
+            let occluded = if occlusion { "_occlusion" } else { "" };
+            let backbone = if encoder == plan.encoder {
+                String::new()
+            } else {
+                format!("_{}", encoder.name())
+            };
+            let name = format!("{}{occluded}{backbone}", labels.name());
+            ModelRun {
+                object,
+                labels,
+                occlusion,
+                encoder,
+                dir: out.join("models").join(object.name()).join(name),
+            }
+        })
+        .collect()
+}
+
+/// Stage 3: trains the models not trained yet, `plan.concurrent_models` at a time.
+fn train_models(
+    out: &Path,
+    plan: &Plan,
+    runs: &[ModelRun],
+    seed: u64,
+) -> Result<(), PipelineError> {
+    let mut pending = Vec::new();
+    for run in runs {
+        if !is_trained(&run.dir, plan.total_steps())? {
+            pending.push(run);
+        }
+    }
+    let data = data_dir(out, Variant::Uniform);
+    on_threads(&pending, plan.concurrent_models, |run| {
+        eprintln!(
+            "pipeline: training {} on {} labels{}",
+            run.object.name(),
+            run.labels.name(),
+            if run.occlusion { " with occlusion" } else { "" }
+        );
+        let request = TrainRequest {
+            dataset: data.clone(),
+            models_dir: "models".into(),
+            split: "train".into(),
+            val_split: "val".into(),
+            obj_id: None,
+            object_name: Some(run.object.name().into()),
+            labels: run.labels,
+            model: ModelConfig {
+                encoder: run.encoder,
+                input_size: plan.input_size as i64,
+                head_sizes: plan.head.clone(),
+                seed,
+                ..ModelConfig::default()
+            },
+            epochs: plan.epochs,
+            steps_per_epoch: plan.steps_per_epoch,
+            batch_size: plan.batch_size,
+            learning_rate: plan.learning_rate,
+            occlusion: run.occlusion,
+            query_level: plan.query_level,
+            continuous_steps: 36,
+            pretrained: None,
+            out: run.dir.clone(),
+            seed,
+        };
+        let progress = bar(plan.total_steps(), "steps");
+        train_model(&request, &progress)?;
+        progress.finish_and_clear();
+        Ok(())
+    })
+}
+
+/// Stage 4, scores on the validation split (`eval_levelN.json` per run, kept).
+fn evaluate_models(plan: &Plan, runs: &[ModelRun]) -> Result<Vec<EvalResult>, PipelineError> {
+    runs.iter()
+        .map(|run| {
+            let path = eval_file(&run.dir, plan.eval_level);
+            if !path.exists() {
+                let request = EvalRequest {
+                    checkpoint: run.dir.clone(),
+                    dataset: None,
+                    models_dir: None,
+                    split: "val".into(),
+                    level: plan.eval_level,
+                    dense: false,
+                };
+                let progress = bar(0, "images");
+                write_json(&path, &evaluate_run(&request, &progress)?)?;
+                progress.finish_and_clear();
+            }
+            Ok(read_json_as(&path)?)
+        })
+        .collect()
+}
+
+/// Stage 5, figures: each model's distribution for the first validation image of its object,
+/// and its training curves (existing figures are kept).
+fn draw_figures(
+    out: &Path,
+    plan: &Plan,
+    runs: &[ModelRun],
+) -> Result<Vec<FigureEntry>, PipelineError> {
+    let figures = out.join("figures");
+    let data = data_dir(out, Variant::Uniform);
+    let mut entries = Vec::new();
+    for run in runs {
+        let stem = run
+            .dir
+            .strip_prefix(out.join("models"))
+            .unwrap_or(&run.dir)
+            .to_string_lossy()
+            .replace('/', "_");
+        let distribution = figures.join(format!("{stem}.png"));
+        if !distribution.exists() {
+            let figure = first_validation_figure(run, &data, plan.eval_level.min(3))?;
+            write_png(&distribution, &figure)?;
+        }
+        let curves = figures.join(format!("{stem}_curves.png"));
+        if !curves.exists() {
+            let log = run.dir.join(TRAIN_LOG);
+            let text = std::fs::read_to_string(&log)
+                .map_err(|e| bop_dataset::FileError::new(&log, "file", e.to_string()))?;
+            write_png(&curves, &plot_training_curves(&text, &log)?)?;
+        }
+        entries.push(FigureEntry {
+            object: run.object.name().into(),
+            labels: run.labels.name().into(),
+            stem,
+        });
+    }
+    Ok(entries)
+}
+
+/// The distribution figure of `run`'s model for the first validation image of its object.
+fn first_validation_figure(
+    run: &ModelRun,
+    data: &Path,
+    level: u8,
+) -> Result<image::RgbImage, PipelineError> {
+    let info = RunInfo::read(&run.dir)?;
+    let model = ImplicitPdf::load(&run.dir, default_device())?;
+    let dataset = BopDataset::new(data);
+    let models = read_models_info(&dataset.models_info_path())?;
+    for scene_id in dataset.scene_ids("val")? {
+        let scene = dataset.scene("val", scene_id);
+        for (im_id, instances) in read_scene_gt(&scene.gt_path())? {
+            let Some((k, truth)) = instances
+                .iter()
+                .enumerate()
+                .find(|(_, t)| t.obj_id == info.obj_id)
+            else {
+                continue;
+            };
+            let crop = crop_files(
+                &scene.rgb_path(im_id),
+                &scene.mask_visib_path(im_id, k),
+                model.config().input_size as usize,
+            )?;
+            let group = models
+                .get(&info.obj_id)
+                .map(|m| m.symmetry.clone())
+                .unwrap_or_default();
+            let title = format!("{} {} LABELS", run.object.name(), run.labels.name());
+            return distribution_figure(
+                &model,
+                &crop,
+                &group.expand(&truth.pose.rotation),
+                level,
+                &title,
+            );
+        }
+    }
+    Err(PipelineError::option(
+        "dataset",
+        format!("no validation image of {}", run.object.name()),
+    ))
+}
+
+/// `report.json` of the run.
+fn report_of(
+    plan: &Plan,
+    runs: &[ModelRun],
+    scores: &[EvalResult],
+    labels: BTreeMap<String, BTreeMap<String, LabelAccuracy>>,
+    timing_s: BTreeMap<String, f64>,
+    seed: u64,
+) -> Report {
+    let mut report = Report {
+        labels,
+        models: ScoreTable::new(),
+        models_occlusion: ScoreTable::new(),
+        backbones: ScoreTable::new(),
+        timing_s,
+        config: plan.config(seed),
+    };
+    for (run, result) in runs.iter().zip(scores) {
+        let (table, row) = if run.encoder != plan.encoder {
+            (&mut report.backbones, run.encoder.name())
+        } else if run.occlusion {
+            (&mut report.models_occlusion, run.labels.name())
+        } else {
+            (&mut report.models, run.labels.name())
+        };
+        let entry = ModelScores {
+            llh: result.llh,
+            maad_deg: result.maad_deg,
+            recall_maad_deg: result.recall_maad_deg,
+            images: result.images,
+        };
+        table
+            .entry(row.to_string())
+            .or_default()
+            .insert(run.object.name().to_string(), entry);
+    }
+    report
+}

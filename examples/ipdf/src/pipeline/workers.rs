@@ -1,0 +1,94 @@
+//! Training several models at once on threads of their own.
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use crate::PipelineError;
+
+/// Runs `job` on every item, `workers` at a time on threads of their own, each with one
+/// libtorch thread, or more once fewer items are left than workers (`workers` ≤ 1: in turn,
+/// libtorch's threads unchanged). Stops taking new items after the first error, which it
+/// returns.
+pub fn on_threads<T: Sync>(
+    items: &[T],
+    workers: usize,
+    job: impl Fn(&T) -> Result<(), PipelineError> + Sync,
+) -> Result<(), PipelineError> {
+    if workers <= 1 {
+        return items.iter().try_for_each(job);
+    }
+    let threads = tch::get_num_threads();
+    let next = AtomicUsize::new(0);
+    let work = || -> Result<(), PipelineError> {
+        loop {
+            let index = next.fetch_add(1, Ordering::Relaxed);
+            let Some(item) = items.get(index) else {
+                return Ok(());
+            };
+            let running = (items.len() - index).min(workers) as i32;
+            tch::set_num_threads((threads / running).max(1));
+            job(item).inspect_err(|_| next.store(items.len(), Ordering::Relaxed))?;
+        }
+    };
+    let outcomes: Vec<Result<(), PipelineError>> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..workers).map(|_| scope.spawn(work)).collect();
+        handles
+            .into_iter()
+            .map(|handle| {
+                handle.join().unwrap_or_else(|_| {
+                    Err(PipelineError::option("train", "a training thread panicked"))
+                })
+            })
+            .collect()
+    });
+    // libtorch's thread count is partly process-wide (MKL's): put it back for what follows.
+    tch::set_num_threads(threads);
+    outcomes.into_iter().collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Mutex;
+
+    use super::*;
+
+    #[test]
+    fn every_item_runs_once_whatever_the_workers() {
+        for workers in [1, 2, 3, 8] {
+            let done = Mutex::new(Vec::new());
+            let items: Vec<usize> = (0..9).collect();
+            on_threads(&items, workers, |&i| {
+                done.lock().unwrap().push(i);
+                Ok(())
+            })
+            .unwrap();
+            let mut done = done.into_inner().unwrap();
+            done.sort_unstable();
+            assert_eq!(done, items, "{workers} workers");
+        }
+    }
+
+    #[test]
+    fn the_first_error_stops_new_items_and_is_returned() {
+        for workers in [1, 2] {
+            let started = AtomicUsize::new(0);
+            let items: Vec<usize> = (0..50).collect();
+            let outcome = on_threads(&items, workers, |&i| {
+                started.fetch_add(1, Ordering::Relaxed);
+                if i == 3 {
+                    return Err(PipelineError::option("item", format!("{i} failed")));
+                }
+                std::thread::sleep(std::time::Duration::from_millis(20));
+                Ok(())
+            });
+            assert_eq!(outcome.unwrap_err().to_string(), "item: 3 failed");
+            // Only items taken before item 3 failed (the others take 20 ms each) were started.
+            assert!(started.into_inner() <= 3 + 2 * workers, "{workers} workers");
+        }
+    }
+
+    #[test]
+    fn libtorch_threads_are_put_back() {
+        let before = tch::get_num_threads();
+        on_threads(&[0, 1, 2], 2, |_| Ok(())).unwrap();
+        assert_eq!(tch::get_num_threads(), before);
+    }
+}

@@ -1,0 +1,240 @@
+//! Training one Implicit-PDF model of one object on a BOP split (`ipdf train`, and each model of
+//! `ipdf pipeline`): the examples of the chosen label source, validation on the ground-truth
+//! symmetry sets where the validation split has them, a run folder that resumes.
+use std::path::{Path, PathBuf};
+
+use bop_dataset::BopDataset;
+use indicatif::ProgressBar;
+use ipdf_model::{
+    Augmentation, CHECKPOINT_FILE, FitOptions, ImplicitPdf, LabelledImages, LearningRateSchedule,
+    ModelConfig, QuerySampling, TrainOptions, Trainer, default_device, fit, load_backbone,
+};
+use serde::{Deserialize, Serialize};
+
+use crate::PipelineError;
+use crate::run_info::RunInfo;
+use crate::training_data::{ExampleOptions, Examples, LabelSource, choose_object, load_examples};
+
+/// What to train, on what, and where to keep it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrainRequest {
+    /// The BOP dataset.
+    pub dataset: PathBuf,
+    /// Its folder of meshes and `models_info.json` (`models`; T-LESS: `models_cad`).
+    pub models_dir: String,
+    /// The training split.
+    pub split: String,
+    /// The validation split (skipped when there is no such folder).
+    pub val_split: String,
+    /// The object by id; `None` with `object_name` `None`: the dataset's only object.
+    pub obj_id: Option<u32>,
+    /// The object by name (`dataset_info.json`).
+    pub object_name: Option<String>,
+    /// The label sets trained on.
+    pub labels: LabelSource,
+    /// The network (its `seed` initialises the weights).
+    pub model: ModelConfig,
+    /// Epochs.
+    pub epochs: u64,
+    /// Steps per epoch.
+    pub steps_per_epoch: u64,
+    /// Images per step.
+    pub batch_size: usize,
+    /// Peak learning rate (linear warm-up over 5% of the steps, then cosine decay to 0).
+    pub learning_rate: f64,
+    /// The paper's occlusion augmentation, else colour augmentation only.
+    pub occlusion: bool,
+    /// Query rotations per image and step: the rotated grid of this level.
+    pub query_level: u8,
+    /// Steps per turn of a continuous symmetry in analytical label sets.
+    pub continuous_steps: usize,
+    /// Pretrained encoder weights (`.safetensors`, torchvision names).
+    pub pretrained: Option<PathBuf>,
+    /// The run folder (one with a checkpoint resumes).
+    pub out: PathBuf,
+    /// Seed of the batches, queries and augmentation.
+    pub seed: u64,
+}
+
+/// What a training run did: the JSON of `ipdf train`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TrainResult {
+    /// The run folder.
+    pub run: PathBuf,
+    /// The object's name.
+    pub object: String,
+    /// The object's id.
+    pub obj_id: u32,
+    /// `single`, `analytical` or `pseudo`.
+    pub labels: String,
+    /// Training crops.
+    pub train_images: usize,
+    /// Validation crops, when there was a validation split.
+    pub validation_images: Option<usize>,
+    /// Steps done in all, earlier runs into the folder included.
+    pub step: u64,
+    /// Epochs run by this call.
+    pub epochs_run: usize,
+    /// The last epoch's mean loss.
+    pub loss: Option<f64>,
+    /// The last epoch's validation LLH (dense level-2 grid).
+    pub validation_llh: Option<f64>,
+    /// The last epoch's training speed.
+    pub images_per_s: Option<f64>,
+    /// Seconds spent training by this call.
+    pub seconds: f64,
+}
+
+/// Trains (or resumes) the run of `request`; `progress` advances by one per step. A run folder
+/// holding a run of other data or another network is refused.
+pub fn train_model(
+    request: &TrainRequest,
+    progress: &ProgressBar,
+) -> Result<TrainResult, PipelineError> {
+    request.model.validate()?;
+    let dataset = BopDataset::open(&request.dataset, &request.models_dir)?;
+    let (obj_id, object) = choose_object(&dataset, request.obj_id, request.object_name.as_deref())?;
+    let examples = |split: &str, labels: LabelSource| ExampleOptions {
+        split: split.to_string(),
+        obj_id,
+        labels,
+        input_size: request.model.input_size as usize,
+        min_visible_fraction: 0.1,
+        continuous_steps: request.continuous_steps,
+    };
+    let train = load_examples(&dataset, &examples(&request.split, request.labels))?;
+    let validation = validation_examples(&dataset, request, &examples)?;
+    let info = RunInfo {
+        dataset: std::path::absolute(&request.dataset)
+            .map_err(|e| bop_dataset::FileError::new(&request.dataset, "folder", e.to_string()))?,
+        models_dir: request.models_dir.clone(),
+        split: request.split.clone(),
+        labels: request.labels.name().to_string(),
+        obj_id,
+        object: object.clone(),
+        occlusion: request.occlusion,
+    };
+    let mut trainer = open_trainer(request, &info)?;
+    let train_images = LabelledImages::new(train.crops.shallow_clone(), train.label_sets.clone())?;
+    let validation_images = match &validation {
+        Some(v) => Some(LabelledImages::new(
+            v.crops.shallow_clone(),
+            v.label_sets.clone(),
+        )?),
+        None => None,
+    };
+    let options = FitOptions {
+        epochs: request.epochs,
+        steps_per_epoch: request.steps_per_epoch,
+        batch_size: request.batch_size,
+        validation_level: 2,
+    };
+    let total_steps = request.epochs * request.steps_per_epoch;
+    progress.set_position(trainer.step().min(total_steps));
+    let reports = fit(
+        &mut trainer,
+        &train_images,
+        validation_images.as_ref(),
+        &options,
+        &request.out,
+        |_| progress.inc(1),
+    )?;
+    let last = reports.last();
+    Ok(TrainResult {
+        run: request.out.clone(),
+        object,
+        obj_id,
+        labels: request.labels.name().to_string(),
+        train_images: train.instances.len(),
+        validation_images: validation.as_ref().map(|v| v.instances.len()),
+        step: trainer.step(),
+        epochs_run: reports.len(),
+        loss: last.map(|r| r.loss),
+        validation_llh: last.and_then(|r| r.validation_llh),
+        images_per_s: last.map(|r| r.images_per_second),
+        seconds: reports.iter().map(|r| r.seconds).sum(),
+    })
+}
+
+/// Whether the run folder `out` holds a finished run of `total_steps` steps.
+pub fn is_trained(out: &Path, total_steps: u64) -> Result<bool, PipelineError> {
+    Ok(out.join(CHECKPOINT_FILE).exists()
+        && ipdf_model::CheckpointInfo::read(out)?.step >= total_steps)
+}
+
+/// Validation measures what every model should learn, the ground-truth symmetry set, where the
+/// split has ground truth; otherwise the same kind of labels as training. `None` without a
+/// validation folder.
+fn validation_examples(
+    dataset: &BopDataset,
+    request: &TrainRequest,
+    examples: &impl Fn(&str, LabelSource) -> ExampleOptions,
+) -> Result<Option<Examples>, PipelineError> {
+    if !dataset.root.join(&request.val_split).is_dir() {
+        return Ok(None);
+    }
+    let has_truth = dataset
+        .scene_ids(&request.val_split)?
+        .iter()
+        .all(|&id| dataset.scene(&request.val_split, id).gt_path().exists());
+    let labels = if has_truth {
+        LabelSource::Analytical
+    } else {
+        request.labels
+    };
+    Ok(Some(load_examples(
+        dataset,
+        &examples(&request.val_split, labels),
+    )?))
+}
+
+/// The trainer of a run folder holding a checkpoint of this run, or of a new run (recorded in
+/// `run.json`).
+fn open_trainer(request: &TrainRequest, info: &RunInfo) -> Result<Trainer, PipelineError> {
+    let device = default_device();
+    let out = &request.out;
+    if out.join(CHECKPOINT_FILE).exists() {
+        let previous = RunInfo::read(out)?;
+        if previous != *info {
+            return Err(PipelineError::option(
+                "out",
+                format!(
+                    "{} holds a run of other data or options ({previous:?}); choose another --out",
+                    out.display()
+                ),
+            ));
+        }
+        let trainer = Trainer::resume(out, device)?;
+        trainer
+            .model()
+            .config()
+            .check_same(&request.model, &out.join(CHECKPOINT_FILE))?;
+        return Ok(trainer);
+    }
+    let mut model = ImplicitPdf::new(request.model.clone(), device)?;
+    if let Some(path) = &request.pretrained {
+        load_backbone(&mut model, path)?;
+    }
+    let total = (request.epochs * request.steps_per_epoch).max(1);
+    let options = TrainOptions {
+        schedule: LearningRateSchedule {
+            peak: request.learning_rate,
+            warmup_steps: total / 20,
+            total_steps: total,
+        },
+        queries: QuerySampling::Grid {
+            level: request.query_level,
+        },
+        augmentation: if request.occlusion {
+            Augmentation::OCCLUSION
+        } else {
+            Augmentation::COLOUR
+        },
+        seed: request.seed,
+        ..TrainOptions::default()
+    };
+    std::fs::create_dir_all(out)
+        .map_err(|e| bop_dataset::FileError::new(out, "folder", e.to_string()))?;
+    info.write(out)?;
+    Ok(Trainer::new(model, options)?)
+}

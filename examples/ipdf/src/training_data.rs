@@ -1,0 +1,450 @@
+//! Training and evaluation data from a BOP split: for every visible instance of one object, a
+//! square RGB crop around its visible mask (`ipdf_model::crop_object`, background black) and
+//! its rotation label set: the ground-truth pose alone (`single`), the pose expanded by the
+//! object's symmetries from `models_info.json` (`analytical`), or the pseudo labels of
+//! `ipdf label` (`pseudo`). The ground-truth symmetry set is kept beside, when the split has
+//! `scene_gt.json`, for evaluation.
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use ipdf_model::{CropOptions, crop_object};
+use nalgebra::UnitQuaternion;
+use rayon::prelude::*;
+use tch::{Kind, Tensor};
+
+use bop_dataset::{
+    BopDataset, FileError, PseudoInstance, read_models_info, read_pseudo_gt, read_scene_gt,
+    read_scene_gt_info,
+};
+
+use crate::PipelineError;
+
+/// Which rotations an instance is labelled with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LabelSource {
+    /// The ground-truth pose of the image alone (what a pose-annotated dataset gives).
+    Single,
+    /// The ground-truth pose with every symmetry of `models_info.json`.
+    Analytical,
+    /// The pseudo labels of `scene_pseudo_gt.json` (no ground truth used).
+    Pseudo,
+}
+
+impl LabelSource {
+    /// `single`, `analytical` or `pseudo`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Single => "single",
+            Self::Analytical => "analytical",
+            Self::Pseudo => "pseudo",
+        }
+    }
+
+    /// Every source.
+    pub const ALL: [Self; 3] = [Self::Single, Self::Analytical, Self::Pseudo];
+}
+
+impl std::str::FromStr for LabelSource {
+    type Err = String;
+
+    /// A source by its [`LabelSource::name`].
+    fn from_str(name: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|s| s.name() == name)
+            .ok_or_else(|| format!("{name:?}: expected single, analytical or pseudo"))
+    }
+}
+
+/// Which instances become examples, and how.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExampleOptions {
+    /// The split folder.
+    pub split: String,
+    /// The object whose instances are taken.
+    pub obj_id: u32,
+    /// Where the label sets come from.
+    pub labels: LabelSource,
+    /// Side of the square crops (pixels).
+    pub input_size: usize,
+    /// Instances with a smaller visible fraction (`scene_gt_info.json`) are left out.
+    pub min_visible_fraction: f64,
+    /// Steps per turn of a continuous symmetry in `analytical` label sets (the ground-truth
+    /// sets of evaluation always use 200, as the paper).
+    pub continuous_steps: usize,
+}
+
+impl ExampleOptions {
+    /// The instances scored against their ground truth (`ipdf eval`): every instance of
+    /// `obj_id` in `split` at least 10% visible, single labels (the ground-truth sets are
+    /// [`Examples::truth_sets`]).
+    pub fn evaluation(split: &str, obj_id: u32, input_size: usize) -> Self {
+        Self {
+            split: split.to_string(),
+            obj_id,
+            labels: LabelSource::Single,
+            input_size,
+            min_visible_fraction: 0.1,
+            continuous_steps: 1,
+        }
+    }
+}
+
+/// One instance's place in the dataset.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct InstanceRef {
+    /// Scene id.
+    pub scene_id: u32,
+    /// Image id.
+    pub im_id: u32,
+    /// Instance index in the image (mask order).
+    pub instance: usize,
+}
+
+/// Crops, label sets and (where known) ground-truth symmetry sets of one object's instances.
+pub struct Examples {
+    /// `[N, 3, S, S]` crops, 8-bit.
+    pub crops: Tensor,
+    /// One label set per crop.
+    pub label_sets: Vec<Vec<UnitQuaternion<f64>>>,
+    /// The ground-truth symmetry set per crop (continuous axes in 200 steps), when the split
+    /// has ground truth.
+    pub truth_sets: Option<Vec<Vec<UnitQuaternion<f64>>>>,
+    /// Where each crop comes from.
+    pub instances: Vec<InstanceRef>,
+}
+
+/// One instance to crop, before its images are read.
+struct Pending {
+    at: InstanceRef,
+    labels: Vec<UnitQuaternion<f64>>,
+    truth: Option<Vec<UnitQuaternion<f64>>>,
+}
+
+/// The examples of `options.obj_id` in `options.split` of `dataset`. Pseudo labels missing
+/// from a scene are an error that says how to make them; instances whose labelling failed are
+/// left out, as are instances below the visible fraction.
+pub fn load_examples(
+    dataset: &BopDataset,
+    options: &ExampleOptions,
+) -> Result<Examples, PipelineError> {
+    let models = read_models_info(&dataset.models_info_path())?;
+    let group = models
+        .get(&options.obj_id)
+        .map(|m| m.symmetry.clone())
+        .ok_or_else(|| {
+            FileError::new(
+                &dataset.models_info_path(),
+                options.obj_id.to_string(),
+                "no such object",
+            )
+        })?;
+    let mut pending = Vec::new();
+    for scene_id in dataset.scene_ids(&options.split)? {
+        let scene = dataset.scene(&options.split, scene_id);
+        let gt = scene
+            .gt_path()
+            .exists()
+            .then(|| read_scene_gt(&scene.gt_path()))
+            .transpose()?;
+        let visible = scene
+            .gt_info_path()
+            .exists()
+            .then(|| read_scene_gt_info(&scene.gt_info_path()))
+            .transpose()?;
+        let pseudo: Option<BTreeMap<u32, Vec<PseudoInstance>>> = match options.labels {
+            LabelSource::Pseudo => {
+                let path = scene.pseudo_gt_path();
+                if !path.exists() {
+                    return Err(FileError::new(
+                        &path,
+                        "file",
+                        format!(
+                            "missing: make the pseudo labels first with `ipdf label --dataset {} --split {}`",
+                            dataset.root.display(),
+                            options.split
+                        ),
+                    )
+                    .into());
+                }
+                Some(read_pseudo_gt(&path)?)
+            }
+            _ => None,
+        };
+        // Which object each mask shows: from the ground truth, or from the pseudo labels.
+        let object_ids: BTreeMap<u32, Vec<u32>> = match (&gt, &pseudo) {
+            (Some(gt), _) => gt
+                .iter()
+                .map(|(&im, list)| (im, list.iter().map(|i| i.obj_id).collect()))
+                .collect(),
+            (None, Some(pseudo)) => pseudo
+                .iter()
+                .map(|(&im, list)| (im, list.iter().map(|i| i.obj_id).collect()))
+                .collect(),
+            (None, None) => {
+                return Err(FileError::new(
+                    &scene.gt_path(),
+                    "file",
+                    format!(
+                        "missing: {} labels need the ground truth",
+                        options.labels.name()
+                    ),
+                )
+                .into());
+            }
+        };
+        for (im_id, ids) in object_ids {
+            for (instance, &obj_id) in ids.iter().enumerate() {
+                if obj_id != options.obj_id {
+                    continue;
+                }
+                let fraction = visible
+                    .as_ref()
+                    .and_then(|v| v.get(&im_id)?.get(instance))
+                    .map_or(1.0, |info| info.visib_fract);
+                if fraction < options.min_visible_fraction {
+                    continue;
+                }
+                let truth_pose = gt.as_ref().and_then(|gt| gt.get(&im_id)?.get(instance));
+                let truth = truth_pose.map(|t| group.expand(&t.pose.rotation));
+                let labels = match options.labels {
+                    LabelSource::Single => truth_pose.map(|t| vec![t.pose.rotation]),
+                    LabelSource::Analytical => truth_pose.map(|t| {
+                        group
+                            .rotations(options.continuous_steps)
+                            .iter()
+                            .map(|s| t.pose.rotation * s)
+                            .collect()
+                    }),
+                    LabelSource::Pseudo => pseudo
+                        .as_ref()
+                        .and_then(|p| p.get(&im_id)?.get(instance))
+                        .map(|p| p.labels.iter().map(|l| l.pose.rotation).collect()),
+                };
+                let Some(labels) = labels.filter(|l: &Vec<_>| !l.is_empty()) else {
+                    continue;
+                };
+                pending.push(Pending {
+                    at: InstanceRef {
+                        scene_id,
+                        im_id,
+                        instance,
+                    },
+                    labels,
+                    truth,
+                });
+            }
+        }
+    }
+    if pending.is_empty() {
+        return Err(PipelineError::option(
+            "dataset",
+            format!(
+                "no labelled instance of object {} in split {:?} of {}",
+                options.obj_id,
+                options.split,
+                dataset.root.display()
+            ),
+        ));
+    }
+    // Crops; an instance whose visible mask is empty (fully occluded: BOP keeps them, with
+    // `visib_fract` 0) is left out, like one below the visible fraction.
+    let crops: Vec<Option<Vec<u8>>> = pending
+        .par_iter()
+        .map(|p| {
+            let scene = dataset.scene(&options.split, p.at.scene_id);
+            match crop_files(
+                &scene.rgb_path(p.at.im_id),
+                &scene.visible_mask_path(p.at.im_id, p.at.instance),
+                options.input_size,
+            ) {
+                Ok(crop) => Ok(Some(crop)),
+                Err(CropError::EmptyMask(_)) => Ok(None),
+                Err(CropError::Failed(error)) => Err(error),
+            }
+        })
+        .collect::<Result<_, PipelineError>>()?;
+    let (pending, crops): (Vec<Pending>, Vec<Vec<u8>>) = pending
+        .into_iter()
+        .zip(crops)
+        .filter_map(|(p, crop)| Some((p, crop?)))
+        .unzip();
+    if pending.is_empty() {
+        return Err(PipelineError::option(
+            "dataset",
+            format!(
+                "every instance of object {} in split {:?} of {} has an empty visible mask",
+                options.obj_id,
+                options.split,
+                dataset.root.display()
+            ),
+        ));
+    }
+    let size = options.input_size as i64;
+    let crops = Tensor::from_slice(&crops.concat())
+        .reshape([pending.len() as i64, 3, size, size])
+        .to_kind(Kind::Uint8);
+    let has_truth = pending.iter().all(|p| p.truth.is_some());
+    Ok(Examples {
+        crops,
+        truth_sets: has_truth.then(|| pending.iter().filter_map(|p| p.truth.clone()).collect()),
+        label_sets: pending.iter().map(|p| p.labels.clone()).collect(),
+        instances: pending.iter().map(|p| p.at).collect(),
+    })
+}
+
+/// The object a run is for: `obj_id` or the object named `name` (`dataset_info.json`), or the
+/// dataset's only object; with its name (`obj_NNNNNN` when the dataset names none).
+pub fn choose_object(
+    dataset: &BopDataset,
+    obj_id: Option<u32>,
+    name: Option<&str>,
+) -> Result<(u32, String), PipelineError> {
+    let models = read_models_info(&dataset.models_info_path())?;
+    let names = dataset
+        .read_info()?
+        .map(|info| info.names)
+        .unwrap_or_default();
+    let name_of = |id: u32| {
+        names
+            .get(&id)
+            .cloned()
+            .unwrap_or_else(|| format!("obj_{id:06}"))
+    };
+    let ids: Vec<u32> = models.keys().copied().collect();
+    let chosen = match (obj_id, name) {
+        (Some(id), _) => Some(id).filter(|id| models.contains_key(id)),
+        (None, Some(name)) => ids.iter().copied().find(|&id| name_of(id) == name),
+        (None, None) => (ids.len() == 1).then(|| ids[0]),
+    };
+    let listing = ids
+        .iter()
+        .map(|&id| format!("{id} ({})", name_of(id)))
+        .collect::<Vec<_>>()
+        .join(", ");
+    chosen.map(|id| (id, name_of(id))).ok_or_else(|| {
+        PipelineError::option(
+            "obj_id",
+            format!("choose one of the dataset's objects: {listing}"),
+        )
+    })
+}
+
+/// Why [`crop_files`] gave no crop.
+#[derive(Debug, thiserror::Error)]
+pub enum CropError {
+    /// The mask file selects no pixel (e.g. a fully occluded instance).
+    #[error("{}: mask: the object mask is empty", .0.display())]
+    EmptyMask(PathBuf),
+    /// Unreadable images, mismatched sizes or a bad crop size.
+    #[error(transparent)]
+    Failed(#[from] PipelineError),
+}
+
+impl From<CropError> for PipelineError {
+    fn from(error: CropError) -> Self {
+        match error {
+            CropError::Failed(error) => error,
+            CropError::EmptyMask(path) => {
+                FileError::new(&path, "mask", "the object mask is empty").into()
+            }
+        }
+    }
+}
+
+/// The 8-bit `[3, size, size]` crop (channel-major) of the colour image at `rgb` around the
+/// mask at `mask` (`ipdf_model::crop_object`).
+pub fn crop_files(rgb: &Path, mask: &Path, size: usize) -> Result<Vec<u8>, CropError> {
+    let colour = bop_dataset::read_rgb(rgb).map_err(PipelineError::from)?;
+    let visible = bop_dataset::read_mask(mask).map_err(PipelineError::from)?;
+    if (visible.width, visible.height) != (colour.width, colour.height) {
+        let reason = format!(
+            "{}×{} but the colour image is {}×{}",
+            visible.width, visible.height, colour.width, colour.height
+        );
+        return Err(PipelineError::from(FileError::new(mask, "size", reason)).into());
+    }
+    crop_bytes(
+        colour.pixels.as_flattened(),
+        &visible.pixels,
+        colour.width as usize,
+        colour.height as usize,
+        size,
+    )
+    .map_err(|error| match error {
+        ipdf_model::ModelError::EmptyMask => CropError::EmptyMask(mask.to_path_buf()),
+        error => PipelineError::from(error).into(),
+    })
+}
+
+/// The 8-bit `[3, size, size]` crop (`ipdf_model::crop_object`) of a row-major RGB image
+/// around the true pixels of `mask`.
+fn crop_bytes(
+    rgb: &[u8],
+    mask: &[bool],
+    width: usize,
+    height: usize,
+    size: usize,
+) -> Result<Vec<u8>, ipdf_model::ModelError> {
+    let mask: Vec<u8> = mask.iter().map(|&m| u8::from(m)).collect();
+    let values = crop_object(rgb, &mask, width, height, &CropOptions::new(size))?;
+    Ok(values.iter().map(|v| (v * 255.0).round() as u8).collect())
+}
+
+/// An 8-bit crop from [`crop_files`] as the `[3, S, S]` float tensor in `[0, 1]` the model takes.
+pub fn crop_tensor(crop: &[u8], size: usize) -> Tensor {
+    let s = size as i64;
+    to_unit_floats(&Tensor::from_slice(crop).reshape([3, s, s]))
+}
+
+/// 8-bit crops (one, or a batch as in [`Examples::crops`]) as the floats in `[0, 1]` the model
+/// takes.
+pub fn to_unit_floats(crops: &Tensor) -> Tensor {
+    crops.to_kind(Kind::Float) / 255.0
+}
+
+/// `count` examples of `object` rendered in memory (no dataset on disk): frames as
+/// [`crate::synth`] draws them, uniform colour, crops of `size` pixels, each labelled and
+/// scored with its full symmetry set. For tests and examples.
+pub fn rendered_examples(
+    object: &synth_data::SynthObject,
+    count: usize,
+    size: usize,
+    seed: u64,
+) -> Result<Examples, PipelineError> {
+    use rand::SeedableRng;
+    let renderer = synth_data::FrameRenderer::new(&object.mesh)?;
+    let camera = synth_data::SynthOptions::t_less_camera().camera;
+    let style = synth_data::FrameStyle {
+        material: depth_render::Material::Uniform(object.colour),
+        distractors: 0,
+        noise: None,
+    };
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let (width, height) = (camera.width as usize, camera.height as usize);
+    let (mut crops, mut sets, mut instances) = (Vec::new(), Vec::new(), Vec::new());
+    for im_id in 0..count as u32 {
+        let frame =
+            renderer.render(&camera, &synth_data::ViewRange::default(), &style, &mut rng)?;
+        crops.extend(crop_bytes(
+            frame.rgb.as_flattened(),
+            &frame.mask_visib,
+            width,
+            height,
+            size,
+        )?);
+        sets.push(object.symmetry.expand(&frame.pose.rotation));
+        instances.push(InstanceRef {
+            scene_id: 0,
+            im_id,
+            instance: 0,
+        });
+    }
+    let s = size as i64;
+    Ok(Examples {
+        crops: Tensor::from_slice(&crops).reshape([count as i64, 3, s, s]),
+        label_sets: sets.clone(),
+        truth_sets: Some(sets),
+        instances,
+    })
+}

@@ -1,0 +1,465 @@
+//! Labelling a BOP split: options, sharding, the per-scene loop and its summary.
+use std::collections::BTreeMap;
+use std::sync::Arc;
+use std::time::Instant;
+
+use indicatif::ProgressBar;
+use rayon::prelude::*;
+
+use bop_dataset::{
+    BopDataset, FileError, Intrinsics, PseudoInstance, SceneDir, read_depth, read_mask,
+    read_object_ids, read_scene_camera, write_pseudo_gt,
+};
+
+use crate::instance::{LabelFailure, label_instance};
+use crate::{LabelError, ObjectModel, Observation, PixelLattice};
+
+/// How the labels of an instance after the first are found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Strategy {
+    /// ICP re-seeded at the best pose composed with each self-symmetry of the model.
+    Reseed,
+    /// Independent trials from random initial poses, each label the best of `trials` (the
+    /// paper's procedure).
+    Trials,
+}
+
+impl Strategy {
+    /// Every strategy.
+    pub const ALL: [Self; 2] = [Self::Reseed, Self::Trials];
+
+    /// `reseed` or `trials`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Reseed => "reseed",
+            Self::Trials => "trials",
+        }
+    }
+}
+
+impl std::str::FromStr for Strategy {
+    type Err = String;
+
+    /// A strategy by its [`Strategy::name`].
+    fn from_str(name: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|s| s.name() == name)
+            .ok_or_else(|| format!("{name:?}: expected reseed or trials"))
+    }
+}
+
+/// Options of the labelling; lengths are fractions of the object's diameter so that one set
+/// fits objects of any size.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LabelOptions {
+    /// K: at most this many labels per instance.
+    pub labels: usize,
+    /// M: global-alignment trials per label: fewer once one scores below half the threshold,
+    /// up to 3M while none is below the threshold.
+    pub trials: usize,
+    /// How labels after the first are found.
+    pub strategy: Strategy,
+    /// Voxel size of the clouds, as a fraction of the diameter.
+    pub voxel_fraction: f64,
+    /// Surface samples of the model before downsampling.
+    pub model_points: usize,
+    /// Per-pixel error cap of the render-and-compare score, as a fraction of the diameter.
+    pub score_clamp: f64,
+    /// Labels scoring above this fraction of the diameter are dropped…
+    pub max_score: f64,
+    /// …unless they score below this many metres (the sensor's noise alone scores about
+    /// 1.5 mm on a Kinect-like camera, whatever the object's size).
+    pub score_floor: f64,
+    /// Labels closer than this (degrees) to a better one are merged into it.
+    pub merge_angle_deg: f64,
+    /// At most this many self-symmetries are used for re-seeding, spread evenly.
+    pub max_symmetries: usize,
+    /// Depth and mask are read at every n-th pixel of every n-th row ([`PixelLattice`]):
+    /// the observed cloud is downsampled to voxels of millimetres anyway, and the
+    /// render-and-compare score is a mean over the window, so 2 costs a quarter of the rays
+    /// for the same labels.
+    pub pixel_stride: u32,
+    /// Seed of the initial poses and of FGR's sampling.
+    pub seed: u64,
+}
+
+impl Default for LabelOptions {
+    /// K = 8 labels, M = 3 trials, re-seeding, voxel 1/40 of the diameter, 20,000 model
+    /// samples, score clamp 10% and threshold 1.5% of the diameter but at least 3 mm, merge
+    /// within 2°, 32 symmetries, every other pixel, seed 0.
+    fn default() -> Self {
+        Self {
+            labels: 8,
+            trials: 3,
+            strategy: Strategy::Reseed,
+            voxel_fraction: 0.025,
+            model_points: 20_000,
+            score_clamp: 0.1,
+            max_score: 0.015,
+            score_floor: 0.003,
+            merge_angle_deg: 2.0,
+            max_symmetries: 32,
+            pixel_stride: 2,
+            seed: 0,
+        }
+    }
+}
+
+impl LabelOptions {
+    /// The score (metres) above which a pose is dropped, for an object of `diameter` metres.
+    pub fn threshold(&self, diameter: f64) -> f64 {
+        (self.max_score * diameter).max(self.score_floor)
+    }
+
+    fn validate(&self) -> Result<(), LabelError> {
+        let positive = |name: &'static str, value: f64| {
+            if value.is_finite() && value > 0.0 {
+                Ok(())
+            } else {
+                Err(LabelError::option(
+                    name,
+                    format!("{value}: must be positive"),
+                ))
+            }
+        };
+        positive("voxel_fraction", self.voxel_fraction)?;
+        positive("score_clamp", self.score_clamp)?;
+        positive("max_score", self.max_score)?;
+        if !(self.score_floor.is_finite() && self.score_floor >= 0.0) {
+            return Err(LabelError::option("score_floor", "must be at least 0"));
+        }
+        if !(self.merge_angle_deg.is_finite() && self.merge_angle_deg >= 0.0) {
+            return Err(LabelError::option("merge_angle", "must be at least 0"));
+        }
+        for (name, value) in [
+            ("labels", self.labels),
+            ("trials", self.trials),
+            ("model_points", self.model_points),
+            ("max_symmetries", self.max_symmetries),
+            ("pixel_stride", self.pixel_stride as usize),
+        ] {
+            if value == 0 {
+                return Err(LabelError::option(name, "must be at least 1"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Which part of a split one job labels: scene `k` (in sorted order) belongs to shard `k mod n`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shard {
+    /// This job's shard, from 0.
+    pub index: usize,
+    /// Number of shards.
+    pub count: usize,
+}
+
+impl Shard {
+    /// All scenes.
+    pub const ALL: Self = Self { index: 0, count: 1 };
+
+    /// Parses `i/n` (0 ≤ i < n).
+    pub fn parse(text: &str) -> Result<Self, LabelError> {
+        let bad = || LabelError::option("shard", format!("{text:?}: expected i/n with 0 ≤ i < n"));
+        let (index, count) = text.split_once('/').ok_or_else(bad)?;
+        let (index, count) = (
+            index.trim().parse::<usize>().map_err(|_| bad())?,
+            count.trim().parse::<usize>().map_err(|_| bad())?,
+        );
+        if index >= count {
+            return Err(bad());
+        }
+        Ok(Self { index, count })
+    }
+}
+
+/// What [`label_dataset`] did.
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize)]
+pub struct LabelSummary {
+    /// Scenes of this shard.
+    pub scenes: usize,
+    /// Of those, scenes already labelled by an earlier run.
+    pub scenes_skipped: usize,
+    /// Images labelled by this run.
+    pub images: usize,
+    /// Instances labelled by this run.
+    pub instances: usize,
+    /// Of those, instances with at least one label.
+    pub labelled: usize,
+    /// Labels written.
+    pub labels: usize,
+    /// Instances with a warning.
+    pub warnings: usize,
+    /// Failed instances by kind ([`LabelFailure::kind`]).
+    pub failures: BTreeMap<&'static str, usize>,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+}
+
+/// Where to find each instance's object and mesh.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DatasetOptions {
+    /// The split's folder name (`train`, `test_primesense`, …).
+    pub split: String,
+    /// Metres per mesh unit (BOP: 0.001).
+    pub mesh_scale: f64,
+    /// The object id of every mask, for datasets without `scene_gt.json`.
+    pub obj_id: Option<u32>,
+    /// The scenes of this job.
+    pub shard: Shard,
+}
+
+/// Labels every unlabelled scene of `options.split` in this shard (see the module docs);
+/// `progress` advances by one per image.
+pub fn label_dataset(
+    dataset: &BopDataset,
+    dataset_options: &DatasetOptions,
+    options: &LabelOptions,
+    progress: &ProgressBar,
+) -> Result<LabelSummary, LabelError> {
+    options.validate()?;
+    if !dataset.models.is_dir() {
+        return Err(FileError::new(
+            &dataset.models,
+            "folder",
+            "missing: labelling needs the object meshes (choose the folder with --models-dir)",
+        )
+        .into());
+    }
+    let started = Instant::now();
+    let shard = dataset_options.shard;
+    let all_scenes = dataset.scene_ids(&dataset_options.split)?;
+    if all_scenes.is_empty() {
+        return Err(FileError::new(
+            &dataset.root.join(&dataset_options.split),
+            "folder",
+            "no scene folders (six-digit names such as 000001)",
+        )
+        .into());
+    }
+    let scene_ids: Vec<u32> = all_scenes
+        .into_iter()
+        .enumerate()
+        .filter(|(k, _)| k % shard.count == shard.index)
+        .map(|(_, id)| id)
+        .collect();
+    let mut summary = LabelSummary {
+        scenes: scene_ids.len(),
+        ..LabelSummary::default()
+    };
+    let mut models: BTreeMap<u32, Option<Arc<ObjectModel>>> = BTreeMap::new();
+    for scene_id in scene_ids {
+        let scene = dataset.scene(&dataset_options.split, scene_id);
+        let instances = scene_instances(&scene, dataset_options.obj_id)?;
+        if scene.pseudo_gt_path().exists() {
+            summary.scenes_skipped += 1;
+            progress.inc(instances.len() as u64);
+            continue;
+        }
+        for obj_id in instances.values().flatten() {
+            if !models.contains_key(obj_id) {
+                models.insert(
+                    *obj_id,
+                    load_model(dataset, *obj_id, dataset_options, options)?,
+                );
+            }
+        }
+        let cameras = read_scene_camera(&scene.camera_path())?;
+        let labelled: Vec<(u32, Vec<Outcome>)> = instances
+            .par_iter()
+            .map(|(&im_id, obj_ids)| {
+                let result = match cameras.get(&im_id) {
+                    Some(intrinsics) => {
+                        label_image(&scene, im_id, intrinsics, obj_ids, &models, options)
+                    }
+                    None => failed_image(
+                        obj_ids,
+                        &LabelFailure::Input(format!(
+                            "{}: image {im_id} is missing",
+                            scene.camera_path().display()
+                        )),
+                    ),
+                };
+                progress.inc(1);
+                (im_id, result)
+            })
+            .collect();
+        for (instance, failure) in labelled.iter().flat_map(|(_, list)| list) {
+            summary.instances += 1;
+            summary.labels += instance.labels.len();
+            summary.warnings += usize::from(instance.warning.is_some());
+            match failure {
+                None => summary.labelled += 1,
+                Some(kind) => *summary.failures.entry(kind).or_default() += 1,
+            }
+        }
+        summary.images += labelled.len();
+        let labelled = labelled
+            .into_iter()
+            .map(|(im_id, list)| (im_id, list.into_iter().map(|(i, _)| i).collect()))
+            .collect();
+        write_pseudo_gt(&scene.pseudo_gt_path(), &labelled)?;
+    }
+    summary.seconds = started.elapsed().as_secs_f64();
+    Ok(summary)
+}
+
+/// An instance's pseudo labels and, when labelling failed, the kind of failure.
+type Outcome = (PseudoInstance, Option<&'static str>);
+
+/// The outcome of an instance whose labelling failed with `failure`.
+fn failed_instance(obj_id: u32, failure: &LabelFailure) -> Outcome {
+    let instance = PseudoInstance {
+        obj_id,
+        error: Some(failure.to_string()),
+        ..PseudoInstance::default()
+    };
+    (instance, Some(failure.kind()))
+}
+
+/// Image id → the object id of each instance, in mask order: from `scene_gt.json` (only
+/// `obj_id`), or, without it, one instance of `obj_id` per `mask_visib` file.
+fn scene_instances(
+    scene: &SceneDir,
+    obj_id: Option<u32>,
+) -> Result<BTreeMap<u32, Vec<u32>>, LabelError> {
+    let gt = scene.gt_path();
+    if gt.exists() {
+        return Ok(read_object_ids(&gt)?);
+    }
+    let Some(obj_id) = obj_id else {
+        return Err(FileError::new(
+            &gt,
+            "file",
+            "missing: the object id of each mask is unknown (give --obj-id for a one-object dataset)",
+        )
+        .into());
+    };
+    let cameras = read_scene_camera(&scene.camera_path())?;
+    Ok(cameras
+        .keys()
+        .map(|&im_id| {
+            let count = (0..)
+                .take_while(|&k| scene.visible_mask_path(im_id, k).exists())
+                .count();
+            (im_id, vec![obj_id; count])
+        })
+        .collect())
+}
+
+/// The prepared model of `obj_id`, or `None` when it has no mesh file.
+fn load_model(
+    dataset: &BopDataset,
+    obj_id: u32,
+    dataset_options: &DatasetOptions,
+    options: &LabelOptions,
+) -> Result<Option<Arc<ObjectModel>>, LabelError> {
+    let path = dataset.model_path(obj_id);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let mesh = depth_render::load_mesh(&path, dataset_options.mesh_scale)?;
+    Ok(Some(Arc::new(ObjectModel::new(obj_id, &mesh, options)?)))
+}
+
+/// Every instance of an image failed for the same reason.
+fn failed_image(obj_ids: &[u32], failure: &LabelFailure) -> Vec<Outcome> {
+    obj_ids
+        .iter()
+        .map(|&obj_id| failed_instance(obj_id, failure))
+        .collect()
+}
+
+/// A seed per instance, so that results do not depend on the order of work.
+fn instance_seed(seed: u64, scene_id: u32, im_id: u32, instance: usize) -> u64 {
+    let mut x = seed ^ (u64::from(scene_id) << 40) ^ (u64::from(im_id) << 16) ^ instance as u64;
+    // splitmix64's finaliser
+    x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    x ^ (x >> 31)
+}
+
+/// The labels of every instance of one image.
+fn label_image(
+    scene: &SceneDir,
+    im_id: u32,
+    intrinsics: &Intrinsics,
+    obj_ids: &[u32],
+    models: &BTreeMap<u32, Option<Arc<ObjectModel>>>,
+    options: &LabelOptions,
+) -> Vec<Outcome> {
+    let depth_path = scene.depth_path(im_id);
+    let depth = match read_depth(&depth_path, intrinsics.depth_scale) {
+        Ok(depth) => depth,
+        Err(error) => return failed_image(obj_ids, &LabelFailure::Input(error.to_string())),
+    };
+    let camera = match intrinsics.camera(depth.width, depth.height) {
+        Ok(camera) => camera.camera,
+        Err(error) => return failed_image(obj_ids, &LabelFailure::Input(error.to_string())),
+    };
+    // Sampled once per image; each instance samples only its mask.
+    let lattice = PixelLattice::new(&camera, options.pixel_stride);
+    let sampled_depth = lattice.sample(&depth.pixels, 0.0);
+    obj_ids
+        .iter()
+        .enumerate()
+        .map(|(k, &obj_id)| {
+            let Some(model) = models.get(&obj_id).and_then(Option::as_ref) else {
+                return failed_instance(obj_id, &LabelFailure::UnknownObject { obj_id });
+            };
+            let mask_path = scene.visible_mask_path(im_id, k);
+            let mask = match read_mask(&mask_path) {
+                Ok(mask) => mask,
+                Err(error) => {
+                    return failed_instance(obj_id, &LabelFailure::Input(error.to_string()));
+                }
+            };
+            if (mask.width, mask.height) != (depth.width, depth.height) {
+                let failure = LabelFailure::MaskSize {
+                    mask: mask_path,
+                    mask_width: mask.width,
+                    mask_height: mask.height,
+                    width: depth.width,
+                    height: depth.height,
+                };
+                return failed_instance(obj_id, &failure);
+            }
+            let sampled_mask = lattice.sample(&mask.pixels, false);
+            let Some(observation) = Observation::new(lattice.camera, &sampled_depth, &sampled_mask)
+            else {
+                return failed_instance(obj_id, &LabelFailure::EmptyMask);
+            };
+            let seed = instance_seed(options.seed, scene.id, im_id, k);
+            let found = label_instance(model, &observation, options, seed);
+            let (labels, error, kind) = match found.labels {
+                Ok(labels) => (labels, None, None),
+                Err(failure) => (Vec::new(), Some(failure.to_string()), Some(failure.kind())),
+            };
+            let instance = PseudoInstance {
+                obj_id,
+                labels,
+                error,
+                warning: found.warning,
+            };
+            (instance, kind)
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_pixel_stride_of_zero_is_refused_by_name() {
+        let options = LabelOptions {
+            pixel_stride: 0,
+            ..LabelOptions::default()
+        };
+        let error = options.validate().unwrap_err().to_string();
+        assert!(error.contains("pixel_stride"), "{error}");
+        assert!(LabelOptions::default().validate().is_ok());
+    }
+}

@@ -1,0 +1,436 @@
+//! Labelling one object instance, as a short list of named stages:
+//! observed cloud → features → global alignment (random P0, FPFH + FGR) → ICP refinement →
+//! render-and-compare score; the best of several trials is the first label, and the others come
+//! from re-seeding ICP at its symmetric counterparts (or, with [`Strategy::Trials`], from more
+//! independent trials, as in the paper).
+use depth_render::{Window, unproject};
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use registration::{
+    IcpOptions, NormalOrientation, PointCloud, PrepareOptions, PreparedCloud, RegisterOptions,
+    prepare_cloud, refine_icp, register,
+};
+use so3_grid::geodesic_distance;
+
+use crate::score::{Observation, render_and_compare};
+use crate::symmetries::spread;
+use crate::{LabelOptions, ObjectModel, Strategy};
+use bop_dataset::PseudoLabel;
+
+/// Observed and model points pair up in the fine ICP stages only when their normals are
+/// within this angle (radians, 60°): the inside of a bowl never matches its outside.
+const MAX_NORMAL_ANGLE: f32 = std::f32::consts::FRAC_PI_3;
+
+/// Fewest observed points (after downsampling) worth registering.
+const MIN_POINTS: usize = 10;
+
+/// Why an instance got no label; recorded in `scene_pseudo_gt.json`, the run goes on.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum LabelFailure {
+    /// The mask has no pixel.
+    #[error("the mask is empty")]
+    EmptyMask,
+    /// An input file of the instance (depth, mask) or its camera could not be read.
+    #[error("{0}")]
+    Input(String),
+    /// The mask's size differs from the depth image's.
+    #[error(
+        "{}: the mask is {mask_width}×{mask_height} but the depth image {width}×{height}",
+        mask.display()
+    )]
+    MaskSize {
+        /// The mask file.
+        mask: std::path::PathBuf,
+        /// Mask columns.
+        mask_width: u32,
+        /// Mask rows.
+        mask_height: u32,
+        /// Depth image columns.
+        width: u32,
+        /// Depth image rows.
+        height: u32,
+    },
+    /// No pixel of the mask has a depth reading.
+    #[error("no valid depth inside the mask")]
+    NoDepth,
+    /// Too little of the object was observed.
+    #[error("{points} observed points after downsampling, need at least {needed}")]
+    TooFewPoints {
+        /// Points after downsampling.
+        points: usize,
+        /// The minimum.
+        needed: usize,
+    },
+    /// Registration could not run (degenerate cloud, no correspondences, …).
+    #[error("registration failed: {0}")]
+    Registration(String),
+    /// Every pose found scored worse than the threshold.
+    #[error(
+        "no pose explains the depth: best score {best_mm:.2} mm, threshold {threshold_mm:.2} mm"
+    )]
+    NoPoseAccepted {
+        /// The best score (mm).
+        best_mm: f64,
+        /// The threshold (mm).
+        threshold_mm: f64,
+    },
+    /// The instance's object has no model.
+    #[error("object {obj_id} is not in models_info.json or has no mesh")]
+    UnknownObject {
+        /// The object id.
+        obj_id: u32,
+    },
+}
+
+impl LabelFailure {
+    /// The kind of failure, without the instance's numbers (for counting failures).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Self::EmptyMask => "empty mask",
+            Self::Input(_) => "unreadable input",
+            Self::MaskSize { .. } => "mask size differs from depth",
+            Self::NoDepth => "no depth in mask",
+            Self::TooFewPoints { .. } => "too few observed points",
+            Self::Registration(_) => "registration failed",
+            Self::NoPoseAccepted { .. } => "no pose accepted",
+            Self::UnknownObject { .. } => "object without model",
+        }
+    }
+}
+
+/// The outcome of labelling one instance.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InstanceLabels {
+    /// The pose set (best score first), or why there is none.
+    pub labels: Result<Vec<PseudoLabel>, LabelFailure>,
+    /// A doubt worth reporting (e.g. an observed cloud larger than the model), also when
+    /// labelling failed.
+    pub warning: Option<String>,
+}
+
+/// A pose and its score (metres).
+type Scored = (Isometry3<f64>, f64);
+
+/// Stage 1: the observed cloud (camera frame) of the masked depth.
+pub fn observed_cloud(observation: &Observation) -> Result<PointCloud, LabelFailure> {
+    let points = unproject(
+        &observation.camera,
+        Window::full(&observation.camera),
+        observation.depth,
+        Some(observation.mask),
+    );
+    if points.is_empty() {
+        return Err(LabelFailure::NoDepth);
+    }
+    PointCloud::new(points).map_err(|e| LabelFailure::Registration(e.to_string()))
+}
+
+/// A warning when the observed points (downsampled) span more than 1.5 × the model's
+/// diameter: a mesh of another scale, or a mask that covers more than the object.
+pub fn extent_warning(view: &PointCloud, diameter: f64) -> Option<String> {
+    let extent = depth_render::max_distance(view.points());
+    (f64::from(extent) > 1.5 * diameter).then(|| {
+        format!(
+            "the observed cloud spans {:.0} mm but the model's diameter is {:.0} mm: \
+             is the mesh at the right scale?",
+            f64::from(extent) * 1e3,
+            diameter * 1e3
+        )
+    })
+}
+
+/// Stage 2: the observed cloud downsampled at the model's voxel, with normals towards the
+/// camera and FPFH features.
+pub fn observed_features(
+    cloud: &PointCloud,
+    model: &ObjectModel,
+) -> Result<PreparedCloud, LabelFailure> {
+    let options = PrepareOptions::for_voxel(model.voxel)
+        .oriented(NormalOrientation::TowardsViewpoint(Point3::origin()));
+    let view = prepare_cloud(cloud, &options).map_err(|e| match e {
+        registration::RegistrationError::TooFewPoints { got, .. } => LabelFailure::TooFewPoints {
+            points: got,
+            needed: MIN_POINTS,
+        },
+        other => LabelFailure::Registration(other.to_string()),
+    })?;
+    if view.cloud.len() < MIN_POINTS {
+        return Err(LabelFailure::TooFewPoints {
+            points: view.cloud.len(),
+            needed: MIN_POINTS,
+        });
+    }
+    Ok(view)
+}
+
+/// Stage 3, one trial: the random initial pose P0 ([`initial_pose`]), then FPFH + FGR +
+/// coarse-to-fine ICP ([`register`]). Model→camera.
+pub fn global_alignment(
+    model: &ObjectModel,
+    view: &PreparedCloud,
+    seed: u64,
+    trial: u64,
+) -> Result<Isometry3<f64>, LabelFailure> {
+    let initial = initial_pose(model, view, seed, trial);
+    let mut options = RegisterOptions::for_voxel(model.voxel);
+    options.fgr.seed = seed ^ trial.wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    register(&model.cloud, view, &initial, &options)
+        .map(|found| found.alignment.pose)
+        .map_err(|e| LabelFailure::Registration(e.to_string()))
+}
+
+/// Stage 3 without features: ICP of the observed points onto the model from `initial`
+/// (model→camera), with correspondence distances shrinking from a third of the diameter to
+/// the refinement's; a fallback when FGR finds no pose, and an alternative global stage.
+pub fn align_from(
+    model: &ObjectModel,
+    view: &PreparedCloud,
+    initial: &Isometry3<f64>,
+) -> Option<Isometry3<f64>> {
+    let mut pose = initial.inverse();
+    for (fraction, normals) in [(0.3, None), (0.1, None), (0.03, Some(MAX_NORMAL_ANGLE))] {
+        let options = IcpOptions {
+            max_correspondence_distance: (fraction * model.diameter) as f32,
+            max_iterations: 10,
+            max_normal_angle: normals,
+            ..IcpOptions::default()
+        };
+        pose = refine_icp(
+            &view.cloud,
+            &model.cloud.cloud,
+            &model.cloud.index,
+            &pose,
+            &options,
+        )
+        .ok()?
+        .pose;
+    }
+    refine_pose(model, view, &pose.inverse())
+}
+
+/// The random initial pose of trial `trial`: a uniformly random rotation of the model about
+/// its centroid (ChaCha8 stream `trial` of `seed`), moved onto the observed centroid.
+pub fn initial_pose(
+    model: &ObjectModel,
+    view: &PreparedCloud,
+    seed: u64,
+    trial: u64,
+) -> Isometry3<f64> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    rng.set_stream(trial);
+    let rotation = so3_grid::random_rotation(&mut rng);
+    let model_centre = model.cloud.cloud.centroid().unwrap_or_else(Point3::origin);
+    let view_centre = view.cloud.centroid().unwrap_or_else(Point3::origin);
+    Translation3::from(view_centre.coords)
+        * Isometry3::from_parts(Translation3::identity(), rotation)
+        * Translation3::from(-model_centre.coords)
+}
+
+/// Stage 4: point-to-plane ICP of the observed points onto the model (every observed point
+/// has a true counterpart on the model, which is not so the other way round), from `pose`
+/// (model→camera), within 1.5 voxels and between points whose normals agree.
+pub fn refine_pose(
+    model: &ObjectModel,
+    view: &PreparedCloud,
+    pose: &Isometry3<f64>,
+) -> Option<Isometry3<f64>> {
+    let options = IcpOptions {
+        max_correspondence_distance: 1.5 * model.voxel,
+        max_normal_angle: Some(MAX_NORMAL_ANGLE),
+        ..IcpOptions::default()
+    };
+    refine_icp(
+        &view.cloud,
+        &model.cloud.cloud,
+        &model.cloud.index,
+        &pose.inverse(),
+        &options,
+    )
+    .ok()
+    .map(|alignment| alignment.pose.inverse())
+}
+
+/// Stage 5: the render-and-compare score of `pose` (metres; `options.score_clamp` of the
+/// diameter caps each pixel's error), or infinity when nothing can be compared.
+pub fn score_pose(
+    model: &ObjectModel,
+    observation: &Observation,
+    pose: &Isometry3<f64>,
+    options: &LabelOptions,
+) -> f64 {
+    let clamp = (options.score_clamp * model.diameter) as f32;
+    render_and_compare(&model.scene, observation, pose, clamp).map_or(f64::INFINITY, f64::from)
+}
+
+/// One full trial from the random initial pose P0 of `index`: ICP from P0 itself (cheap,
+/// and right whenever P0 lies in the basin of a symmetric pose), then, unless that scores
+/// below half the threshold, FGR from P0 and refinement; the better of the two.
+fn trial(
+    model: &ObjectModel,
+    view: &PreparedCloud,
+    observation: &Observation,
+    options: &LabelOptions,
+    seed: u64,
+    index: u64,
+) -> Result<Scored, LabelFailure> {
+    let threshold = options.threshold(model.diameter);
+    let initial = initial_pose(model, view, seed, index);
+    let local = align_from(model, view, &initial)
+        .map(|pose| (pose, score_pose(model, observation, &pose, options)));
+    if let Some(found) = local
+        && found.1 < 0.5 * threshold
+    {
+        return Ok(found);
+    }
+    let global = global_alignment(model, view, seed, index).map(|pose| {
+        let pose = refine_pose(model, view, &pose).unwrap_or(pose);
+        (pose, score_pose(model, observation, &pose, options))
+    });
+    match (local, global) {
+        (Some(local), Ok(global)) => Ok(if global.1 < local.1 { global } else { local }),
+        (Some(local), Err(_)) => Ok(local),
+        (None, global) => global,
+    }
+}
+
+/// The best of `count` trials (trial indices from `first`): stops early at a score below half
+/// the threshold (a wrong pose can score just under it, a right one well under it), and goes
+/// on up to `3 · count` trials while none is accepted.
+fn best_of_trials(
+    model: &ObjectModel,
+    view: &PreparedCloud,
+    observation: &Observation,
+    options: &LabelOptions,
+    seed: u64,
+    first: u64,
+    count: usize,
+) -> Result<Scored, LabelFailure> {
+    let threshold = options.threshold(model.diameter);
+    let mut best: Option<Scored> = None;
+    let mut failure = None;
+    for index in first..first + 3 * count as u64 {
+        if index >= first + count as u64 && best.is_some_and(|b| b.1 <= threshold) {
+            break;
+        }
+        match trial(model, view, observation, options, seed, index) {
+            Ok(found) => {
+                if best.is_none_or(|b| found.1 < b.1) {
+                    best = Some(found);
+                }
+                if found.1 < 0.5 * threshold {
+                    break;
+                }
+            }
+            Err(error) => failure = Some(error),
+        }
+    }
+    best.ok_or_else(|| failure.unwrap_or(LabelFailure::NoDepth))
+}
+
+/// Labels one instance seen in `observation` (see the module docs). `seed` makes it
+/// deterministic.
+pub fn label_instance(
+    model: &ObjectModel,
+    observation: &Observation,
+    options: &LabelOptions,
+    seed: u64,
+) -> InstanceLabels {
+    let view = match observed_cloud(observation).and_then(|cloud| observed_features(&cloud, model))
+    {
+        Ok(view) => view,
+        Err(failure) => {
+            return InstanceLabels {
+                labels: Err(failure),
+                warning: None,
+            };
+        }
+    };
+    InstanceLabels {
+        warning: extent_warning(&view.cloud, model.diameter),
+        labels: pose_set(model, &view, observation, options, seed),
+    }
+}
+
+/// Stages 3–5 and the choice of labels, for the observed cloud `view`.
+fn pose_set(
+    model: &ObjectModel,
+    view: &PreparedCloud,
+    observation: &Observation,
+    options: &LabelOptions,
+    seed: u64,
+) -> Result<Vec<PseudoLabel>, LabelFailure> {
+    let threshold = options.threshold(model.diameter);
+    let mut candidates: Vec<Scored> = match options.strategy {
+        Strategy::Reseed => {
+            let best = best_of_trials(model, view, observation, options, seed, 0, options.trials)?;
+            if best.1 > threshold {
+                vec![best]
+            } else {
+                // Twice as many starts as labels, spread over the symmetries: enough for the
+                // labels to be spread too after failures and merging.
+                let rotations: Vec<_> = model.symmetries.iter().map(|s| s.rotation).collect();
+                let starts = spread(&rotations, 2 * options.labels);
+                let mut reseeded: Vec<Scored> = starts[1..]
+                    .iter()
+                    .map(|&i| &model.symmetries[i])
+                    .filter_map(|symmetry| {
+                        let pose = refine_pose(model, view, &(best.0 * symmetry))?;
+                        Some((pose, score_pose(model, observation, &pose, options)))
+                    })
+                    .collect();
+                reseeded.insert(0, best);
+                reseeded
+            }
+        }
+        Strategy::Trials => (0..options.labels)
+            .map(|k| {
+                let first = (k * options.trials) as u64;
+                best_of_trials(
+                    model,
+                    view,
+                    observation,
+                    options,
+                    seed,
+                    first,
+                    options.trials,
+                )
+            })
+            .collect::<Result<_, _>>()?,
+    };
+    candidates.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let best_score = candidates.first().map_or(f64::INFINITY, |c| c.1);
+    candidates.retain(|c| c.1 <= threshold);
+    if candidates.is_empty() {
+        return Err(LabelFailure::NoPoseAccepted {
+            best_mm: best_score * 1e3,
+            threshold_mm: threshold * 1e3,
+        });
+    }
+    let merged = merge_duplicates(candidates, options.merge_angle_deg.to_radians());
+    let rotations: Vec<UnitQuaternion<f64>> = merged.iter().map(|c| c.0.rotation).collect();
+    let mut chosen = spread(&rotations, options.labels);
+    chosen.sort_unstable();
+    Ok(chosen
+        .into_iter()
+        .map(|i| PseudoLabel {
+            pose: merged[i].0,
+            score: merged[i].1,
+        })
+        .collect())
+}
+
+/// Poses (best score first) without those within `angle` radians of a better one.
+fn merge_duplicates(candidates: Vec<Scored>, angle: f64) -> Vec<Scored> {
+    let mut kept: Vec<Scored> = Vec::with_capacity(candidates.len());
+    for candidate in candidates {
+        if kept
+            .iter()
+            .all(|k| geodesic_distance(&k.0.rotation, &candidate.0.rotation) > angle)
+        {
+            kept.push(candidate);
+        }
+    }
+    kept
+}

@@ -1,0 +1,172 @@
+//! Scores pseudo labels against the ground truth, where a dataset has one (`ipdf label
+//! --report`): per object, the label MAAD (mean over labels of the angle to the nearest
+//! rotation of the ground-truth symmetry set, the paper's table "Evaluation of the pseudo
+//! ground-truth orientation labels") and the coverage of the symmetry set.
+use std::collections::BTreeMap;
+
+use std::io::Write;
+
+use bop_dataset::{
+    BopDataset, FileError, read_models_info, read_pseudo_gt, read_scene_gt, write_atomically,
+    write_json,
+};
+
+use serde::{Deserialize, Serialize};
+
+use crate::LabelError;
+
+/// A symmetric pose counts as covered when a label lies within this angle (degrees).
+pub const COVERAGE_ANGLE_DEG: f64 = 5.0;
+
+/// The scores of one object's labels.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct ObjectLabelScores {
+    /// The object's id.
+    pub obj_id: u32,
+    /// Instances with a ground-truth pose and a pseudo-label entry.
+    pub instances: usize,
+    /// Of those, instances with at least one label.
+    pub labelled: usize,
+    /// Labels scored.
+    pub labels: usize,
+    /// Mean over labels of the angle to the nearest ground-truth symmetric rotation (degrees).
+    pub label_maad_deg: f64,
+    /// Mean over labelled instances of the fraction of symmetry classes
+    /// ([`metrics::SymmetryGroup::classes`]: the identity and each discrete symmetry, with its
+    /// continuous orbit) within 5° of a label.
+    pub coverage: f64,
+}
+
+/// The scores of a split's labels: `labels.json` of `ipdf label --report`, `{"variant",
+/// "objects": {name: {"obj_id", "instances", "labelled", "labels", "label_maad_deg",
+/// "coverage"}}}`.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct LabelReport {
+    /// The dataset variant (`dataset_info.json`) or its folder's name.
+    pub variant: String,
+    /// Per object, by its name (`dataset_info.json`) or `obj_NNNNNN`.
+    pub objects: BTreeMap<String, ObjectLabelScores>,
+}
+
+impl LabelReport {
+    /// Writes the report as JSON to `path` and as a markdown table beside it (`.md`),
+    /// atomically.
+    pub fn write(&self, path: &std::path::Path) -> Result<(), FileError> {
+        write_json(path, self)?;
+        write_atomically(&path.with_extension("md"), |out| {
+            out.write_all(self.to_markdown().as_bytes())
+        })
+    }
+
+    /// A markdown table of the same.
+    pub fn to_markdown(&self) -> String {
+        let mut text = format!(
+            "Pseudo-label accuracy ({}): label MAAD = mean angle from a label to the nearest \
+             ground-truth symmetric pose; coverage = symmetry classes within {COVERAGE_ANGLE_DEG}° \
+             of a label.\n\n| object | instances | labelled | labels | label MAAD (°) | coverage |\n\
+             |---|---|---|---|---|---|\n",
+            self.variant
+        );
+        for (name, s) in &self.objects {
+            text += &format!(
+                "| {} | {} | {} | {} | {:.2} | {:.1}% |\n",
+                name,
+                s.instances,
+                s.labelled,
+                s.labels,
+                s.label_maad_deg,
+                100.0 * s.coverage
+            );
+        }
+        text
+    }
+}
+
+/// Scores the pseudo labels of `split` against its `scene_gt.json`, scene by scene (scenes
+/// without both files are skipped). `names` maps object ids to names.
+pub fn report(
+    dataset: &BopDataset,
+    split: &str,
+    names: &BTreeMap<u32, String>,
+    variant: &str,
+) -> Result<LabelReport, LabelError> {
+    let models = read_models_info(&dataset.models_info_path())?;
+    let mut sums: BTreeMap<u32, (ObjectLabelScores, f64, f64)> = BTreeMap::new();
+    for scene_id in dataset.scene_ids(split)? {
+        let scene = dataset.scene(split, scene_id);
+        if !scene.pseudo_gt_path().exists() || !scene.gt_path().exists() {
+            continue;
+        }
+        let gt = read_scene_gt(&scene.gt_path())?;
+        let pseudo = read_pseudo_gt(&scene.pseudo_gt_path())?;
+        for (im_id, instances) in &pseudo {
+            for (k, instance) in instances.iter().enumerate() {
+                let Some(truth) = gt.get(im_id).and_then(|list| list.get(k)) else {
+                    continue;
+                };
+                if truth.obj_id != instance.obj_id {
+                    return Err(FileError::new(
+                        &scene.pseudo_gt_path(),
+                        format!("{im_id}[{k}].obj_id"),
+                        format!("{} but scene_gt.json has {}", instance.obj_id, truth.obj_id),
+                    )
+                    .into());
+                }
+                let group = models
+                    .get(&truth.obj_id)
+                    .map(|m| m.symmetry.clone())
+                    .unwrap_or_default();
+                let entry = sums.entry(truth.obj_id).or_insert_with(|| {
+                    let scores = ObjectLabelScores {
+                        obj_id: truth.obj_id,
+                        ..Default::default()
+                    };
+                    (scores, 0.0, 0.0)
+                });
+                entry.0.instances += 1;
+                if instance.labels.is_empty() {
+                    continue;
+                }
+                entry.0.labelled += 1;
+                // Per label, the distance to each symmetry class of the ground truth.
+                let distances: Vec<Vec<f64>> = instance
+                    .labels
+                    .iter()
+                    .map(|label| group.class_distances(&truth.pose.rotation, &label.pose.rotation))
+                    .collect();
+                for per_class in &distances {
+                    entry.1 += per_class
+                        .iter()
+                        .fold(f64::INFINITY, |a, &b| a.min(b))
+                        .to_degrees();
+                    entry.0.labels += 1;
+                }
+                let classes = distances[0].len();
+                let covered = (0..classes)
+                    .filter(|&c| {
+                        distances
+                            .iter()
+                            .any(|d| d[c].to_degrees() <= COVERAGE_ANGLE_DEG)
+                    })
+                    .count();
+                entry.2 += covered as f64 / classes as f64;
+            }
+        }
+    }
+    let objects = sums
+        .into_iter()
+        .map(|(obj_id, (mut scores, maad_sum, coverage_sum))| {
+            scores.label_maad_deg = maad_sum / scores.labels.max(1) as f64;
+            scores.coverage = coverage_sum / scores.labelled.max(1) as f64;
+            let name = names
+                .get(&obj_id)
+                .cloned()
+                .unwrap_or_else(|| format!("obj_{obj_id:06}"));
+            (name, scores)
+        })
+        .collect();
+    Ok(LabelReport {
+        variant: variant.to_string(),
+        objects,
+    })
+}

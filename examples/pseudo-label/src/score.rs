@@ -1,0 +1,182 @@
+//! Render-and-compare: how well a pose of the model explains the observed depth inside the
+//! instance's mask, with occluders in front of the object forgiven.
+use depth_render::{Instance, PinholeCamera, Scene, Window, depth_discrepancy};
+use nalgebra::Isometry3;
+
+use bop_dataset::mask_box;
+
+/// An observed instance: the image's depth and the instance's visible mask.
+#[derive(Debug, Clone, Copy)]
+pub struct Observation<'a> {
+    /// The camera of the image.
+    pub camera: PinholeCamera,
+    /// z-depth of the whole image (metres, 0: no reading), row-major.
+    pub depth: &'a [f32],
+    /// The instance's visible pixels, row-major, the image's size.
+    pub mask: &'a [bool],
+    /// The pixels compared: the mask's bounding box with a margin.
+    pub window: Window,
+}
+
+impl<'a> Observation<'a> {
+    /// The observation of `mask` in `depth` (both the camera's size); `None` for an empty
+    /// mask. The compared window is the mask's box grown by a fifth of its size (at least 4
+    /// pixels) on each side.
+    pub fn new(camera: PinholeCamera, depth: &'a [f32], mask: &'a [bool]) -> Option<Self> {
+        let [u0, v0, u1, v1] = mask_box(mask, camera.width as usize)?;
+        let (margin_u, margin_v) = (((u1 - u0) / 5).max(4), ((v1 - v0) / 5).max(4));
+        let window = Window {
+            u0: u0.saturating_sub(margin_u),
+            v0: v0.saturating_sub(margin_v),
+            u1: (u1 + margin_u).min(camera.width),
+            v1: (v1 + margin_v).min(camera.height),
+        };
+        Some(Self {
+            camera,
+            depth,
+            mask,
+            window,
+        })
+    }
+}
+
+/// The pixels `(n·u, n·v)` of an image, for a stride n ≥ 1: the camera that sees them, and
+/// their values read from any per-pixel image of the full camera's size.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PixelLattice {
+    /// The camera of the sampled pixels: its pixel `(u, v)` is pixel `(n·u, n·v)` of the image.
+    pub camera: PinholeCamera,
+    stride: u32,
+    image_width: u32,
+}
+
+impl PixelLattice {
+    /// Every `stride`-th pixel of every `stride`-th row of `camera`'s image (0 reads as 1).
+    /// Rays go through integer pixel coordinates, so the focal lengths and the principal point
+    /// divide by the stride.
+    pub fn new(camera: &PinholeCamera, stride: u32) -> Self {
+        let n = stride.max(1);
+        let camera_of_lattice = PinholeCamera {
+            fx: camera.fx / f64::from(n),
+            fy: camera.fy / f64::from(n),
+            cx: camera.cx / f64::from(n),
+            cy: camera.cy / f64::from(n),
+            width: camera.width.div_ceil(n),
+            height: camera.height.div_ceil(n),
+        };
+        Self {
+            camera: camera_of_lattice,
+            stride: n,
+            image_width: camera.width,
+        }
+    }
+
+    /// The lattice's values of a row-major image of the full camera's size (depth, mask…);
+    /// pixels beyond a short slice read as `missing`.
+    pub fn sample<T: Copy>(&self, image: &[T], missing: T) -> Vec<T> {
+        let (n, width) = (self.stride as usize, self.image_width as usize);
+        (0..self.camera.height as usize)
+            .flat_map(|v| (0..self.camera.width as usize).map(move |u| v * n * width + u * n))
+            .map(|i| image.get(i).copied().unwrap_or(missing))
+            .collect()
+    }
+}
+
+/// The render-and-compare score (metres, lower is better) of the model (mesh 0 of `scene`) at
+/// model→camera `pose`: [`depth_discrepancy`] over the observation's window between the masked
+/// observed depth and the rendered depth, except that rendered pixels outside the mask behind
+/// an observed surface (nearer by more than `clamp`) are occluded and not compared. `None` when
+/// nothing is observed or rendered in the window.
+pub fn render_and_compare(
+    scene: &Scene,
+    observation: &Observation,
+    pose: &Isometry3<f64>,
+    clamp: f32,
+) -> Option<f32> {
+    let rendering = scene
+        .render(
+            &observation.camera,
+            &[Instance::new(0, *pose)],
+            observation.window,
+        )
+        .ok()?;
+    let window = rendering.window;
+    let (window_width, image_width) = (window.width() as usize, observation.camera.width as usize);
+    let mut observed = Vec::with_capacity(rendering.depth.len());
+    let mut rendered = Vec::with_capacity(rendering.depth.len());
+    for (i, &r) in rendering.depth.iter().enumerate() {
+        let (u, v) = (
+            window.u0 as usize + i % window_width,
+            window.v0 as usize + i / window_width,
+        );
+        let pixel = v * image_width + u;
+        let depth = observation.depth[pixel];
+        if observation.mask[pixel] {
+            observed.push(depth);
+            rendered.push(r);
+        } else if r > 0.0 && depth > 0.0 && depth < r - clamp {
+            continue; // an occluder in front of the model: no evidence either way
+        } else {
+            observed.push(0.0);
+            rendered.push(r);
+        }
+    }
+    depth_discrepancy(&observed, &rendered, clamp)
+}
+
+#[cfg(test)]
+mod tests {
+    use proptest::prelude::*;
+
+    use super::*;
+
+    proptest! {
+        /// Pixel `(u, v)` of the sampled image is pixel `(n·u, n·v)` of the image: the same
+        /// depth, the same mask value and the same camera ray; no pixel is left out at the
+        /// right or bottom edge.
+        #[test]
+        fn sampled_pixels_are_the_images_pixels(
+            width in 1u32..40,
+            height in 1u32..40,
+            stride in 1u32..6,
+            fx in 100.0..2000.0f64,
+            cx in -50.0..50.0f64,
+        ) {
+            let camera = PinholeCamera::new(fx, 1.1 * fx, cx, cx + 3.0, width, height).unwrap();
+            let count = (width * height) as usize;
+            let depth: Vec<f32> = (0..count).map(|i| i as f32).collect();
+            let mask: Vec<bool> = (0..count).map(|i| i % 3 == 0).collect();
+            let lattice = PixelLattice::new(&camera, stride);
+            let (sampled_depth, sampled_mask) = (lattice.sample(&depth, 0.0), lattice.sample(&mask, false));
+            prop_assert_eq!(lattice.camera.width, (width - 1) / stride + 1);
+            prop_assert_eq!(lattice.camera.height, (height - 1) / stride + 1);
+            prop_assert_eq!(sampled_depth.len(), (lattice.camera.width * lattice.camera.height) as usize);
+            prop_assert_eq!(sampled_depth.len(), sampled_mask.len());
+            for (i, (&d, &m)) in sampled_depth.iter().zip(&sampled_mask).enumerate() {
+                let (u, v) = (i as u32 % lattice.camera.width, i as u32 / lattice.camera.width);
+                let (full_u, full_v) = (u * stride, v * stride);
+                let full = (full_v * width + full_u) as usize;
+                prop_assert_eq!(d, depth[full]);
+                prop_assert_eq!(m, mask[full]);
+                let ray = lattice.camera.ray_direction(f64::from(u), f64::from(v));
+                let full_ray = camera.ray_direction(f64::from(full_u), f64::from(full_v));
+                for k in 0..3 {
+                    prop_assert!((ray[k] - full_ray[k]).abs() < 1e-12);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn short_slices_read_as_empty_pixels() {
+        let camera = PinholeCamera::new(500.0, 500.0, 4.0, 4.0, 8, 8).unwrap();
+        let lattice = PixelLattice::new(&camera, 2);
+        let (depth, mask) = (
+            lattice.sample(&[1.0; 10], 0.0),
+            lattice.sample(&[true; 10], false),
+        );
+        assert_eq!(depth.len(), 16);
+        assert_eq!(&depth[..5], &[1.0, 1.0, 1.0, 1.0, 0.0]);
+        assert!(mask[4..].iter().all(|&m| !m));
+    }
+}

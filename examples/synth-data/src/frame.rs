@@ -1,0 +1,332 @@
+//! One synthetic frame: the object resting on a tabletop, a camera looking at it from a random
+//! elevation and distance, optional distractors, rendered into BOP images and annotations.
+use depth_render::{
+    DepthNoise, Instance, Lighting, Material, PinholeCamera, Primitive, RestingPose, Scene,
+    TriangleMesh, Window, resting_poses,
+};
+use nalgebra::{Isometry3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use rand::{Rng, RngExt};
+
+use bop_dataset::{GtInfo, mask_box};
+
+use crate::SynthError;
+
+/// Where the camera may be, relative to the object.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ViewRange {
+    /// Elevation above the table plane (degrees), low and high.
+    pub elevation_deg: (f64, f64),
+    /// Distance from the object's centre (metres), low and high.
+    pub distance: (f64, f64),
+    /// The object's origin lies within this distance (metres) of the table's centre, in x and y.
+    pub table_offset: f64,
+}
+
+impl Default for ViewRange {
+    /// Elevation 15–80°, distance 0.5–1.0 m, object within ±5 cm of the table's centre.
+    fn default() -> Self {
+        Self {
+            elevation_deg: (15.0, 80.0),
+            distance: (0.5, 1.0),
+            table_offset: 0.05,
+        }
+    }
+}
+
+/// The tabletop: 1.2 m square, facing up.
+const TABLE: Primitive = Primitive::Plane {
+    width: 1.2,
+    depth: 1.2,
+};
+
+/// Distractor shapes: a cube, a tin and a carton a few centimetres across.
+const DISTRACTORS: [Primitive; 3] = [
+    Primitive::Cuboid {
+        extents: [0.05, 0.05, 0.05],
+    },
+    Primitive::Cylinder {
+        radius: 0.025,
+        height: 0.08,
+        segments: 32,
+    },
+    Primitive::Cuboid {
+        extents: [0.04, 0.06, 0.1],
+    },
+];
+
+/// A mesh with the ways it can rest on a table and the cumulative probabilities of those.
+struct Restable {
+    poses: Vec<RestingPose>,
+    cumulative: Vec<f64>,
+}
+
+impl Restable {
+    fn new(mesh: &TriangleMesh) -> Result<Self, SynthError> {
+        let poses = resting_poses(mesh)?;
+        let cumulative = poses
+            .iter()
+            .scan(0.0, |total, pose| {
+                *total += pose.probability;
+                Some(*total)
+            })
+            .collect();
+        Ok(Self { poses, cumulative })
+    }
+
+    /// A table-from-model pose: a stable face drawn by its probability, a random yaw, the
+    /// origin above `(x, y)`.
+    fn place<R: Rng>(&self, rng: &mut R, x: f64, y: f64) -> Isometry3<f64> {
+        let draw = rng.random::<f64>() * self.cumulative.last().copied().unwrap_or(1.0);
+        let face = self
+            .cumulative
+            .partition_point(|&c| c < draw)
+            .min(self.poses.len() - 1);
+        let yaw = rng.random::<f64>() * std::f64::consts::TAU;
+        self.poses[face].on_table(yaw, x, y)
+    }
+}
+
+/// Renders frames of one object: the scene (object, table, distractors) is built once.
+pub struct FrameRenderer {
+    scene: Scene,
+    object: Restable,
+    distractors: Vec<Restable>,
+    /// The object's bounding-box corners (model frame).
+    corners: [Point3<f64>; 8],
+    centre: Point3<f64>,
+}
+
+/// The images and annotations of one frame.
+pub struct Frame {
+    /// Shaded colour, row-major.
+    pub rgb: Vec<[u8; 3]>,
+    /// z-depth in metres (0: no reading), with noise when asked for.
+    pub depth: Vec<f32>,
+    /// The object's full silhouette.
+    pub mask: Vec<bool>,
+    /// Its visible part.
+    pub mask_visib: Vec<bool>,
+    /// Model→camera pose (metres).
+    pub pose: Isometry3<f64>,
+    /// Boxes and pixel counts.
+    pub info: GtInfo,
+}
+
+/// What one frame looks like beyond geometry.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameStyle {
+    /// The object's material.
+    pub material: Material,
+    /// Distractor objects on the table around it.
+    pub distractors: usize,
+    /// Depth noise, or clean depth.
+    pub noise: Option<DepthNoise>,
+}
+
+impl FrameRenderer {
+    /// A renderer of frames of `mesh` (metres).
+    pub fn new(mesh: &TriangleMesh) -> Result<Self, SynthError> {
+        let distractor_meshes = DISTRACTORS
+            .iter()
+            .map(Primitive::mesh)
+            .collect::<Result<Vec<_>, _>>()?;
+        let mut meshes = vec![mesh.clone(), TABLE.mesh()?];
+        meshes.extend(distractor_meshes.iter().cloned());
+        let (low, high) = mesh.bounds();
+        let (low, high) = (low.cast::<f64>(), high.cast::<f64>());
+        let corners = std::array::from_fn(|i| {
+            Point3::new(
+                if i & 1 == 0 { low.x } else { high.x },
+                if i & 2 == 0 { low.y } else { high.y },
+                if i & 4 == 0 { low.z } else { high.z },
+            )
+        });
+        Ok(Self {
+            scene: Scene::new(&meshes),
+            object: Restable::new(mesh)?,
+            distractors: distractor_meshes
+                .iter()
+                .map(Restable::new)
+                .collect::<Result<_, _>>()?,
+            corners,
+            centre: nalgebra::center(&low, &high),
+        })
+    }
+
+    /// Draws and renders one frame with `rng`.
+    pub fn render<R: Rng>(
+        &self,
+        camera: &PinholeCamera,
+        view: &ViewRange,
+        style: &FrameStyle,
+        rng: &mut R,
+    ) -> Result<Frame, SynthError> {
+        let mut offset = || (rng.random::<f64>() * 2.0 - 1.0) * view.table_offset;
+        let (x, y) = (offset(), offset());
+        let world_from_object = self.object.place(rng, x, y);
+        let camera_from_world = look_at(&(world_from_object * self.centre), view, rng);
+        let pose = camera_from_world * world_from_object;
+        let mut instances = vec![Instance::new(0, pose), Instance::new(1, camera_from_world)];
+        let mut materials = vec![style.material.clone(), Material::Uniform([0.55, 0.5, 0.45])];
+        for _ in 0..style.distractors {
+            let kind = rng.random_range(0..self.distractors.len());
+            let angle = rng.random::<f64>() * std::f64::consts::TAU;
+            let reach = 0.1 + 0.08 * rng.random::<f64>();
+            let placed =
+                self.distractors[kind].place(rng, x + reach * angle.cos(), y + reach * angle.sin());
+            instances.push(Instance::new(2 + kind, camera_from_world * placed));
+            materials.push(Material::Uniform(std::array::from_fn(|_| {
+                0.2 + 0.7 * rng.random::<f32>()
+            })));
+        }
+        let full = Window::full(camera);
+        let rendering = self.scene.render(camera, &instances, full)?;
+        let rgb = self.scene.shade(
+            camera,
+            &instances,
+            &materials,
+            &Lighting::default(),
+            &rendering,
+        )?;
+        let mask_visib: Vec<bool> = rendering.instance.iter().map(|&i| i == Some(0)).collect();
+        let alone = self
+            .scene
+            .render(camera, &instances[..1], self.window(camera, &pose))?;
+        let mut mask = vec![false; mask_visib.len()];
+        let width = camera.width as usize;
+        let window_width = alone.window.width() as usize;
+        for (i, hit) in alone.instance.iter().enumerate() {
+            if hit.is_some() {
+                let (u, v) = (
+                    alone.window.u0 as usize + i % window_width,
+                    alone.window.v0 as usize + i / window_width,
+                );
+                mask[v * width + u] = true;
+            }
+        }
+        let depth = match &style.noise {
+            Some(noise) => noise.apply(&rendering.depth, width, rng.random()),
+            None => rendering.depth,
+        };
+        let info = gt_info(&mask, &mask_visib, &depth, width);
+        Ok(Frame {
+            rgb,
+            depth,
+            mask,
+            mask_visib,
+            pose,
+            info,
+        })
+    }
+
+    /// The pixels the object's bounding box projects to (the whole image when part of it is
+    /// behind the camera).
+    fn window(&self, camera: &PinholeCamera, pose: &Isometry3<f64>) -> Window {
+        let projected: Option<Vec<_>> = self
+            .corners
+            .iter()
+            .map(|corner| camera.project(&(pose * corner)))
+            .collect();
+        let Some(projected) = projected else {
+            return Window::full(camera);
+        };
+        let (mut low, mut high) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for p in &projected {
+            for axis in 0..2 {
+                low[axis] = low[axis].min(p[axis]);
+                high[axis] = high[axis].max(p[axis]);
+            }
+        }
+        let clamp = |v: f64, size: u32| v.clamp(0.0, f64::from(size)) as u32;
+        Window {
+            u0: clamp(low[0].floor(), camera.width),
+            v0: clamp(low[1].floor(), camera.height),
+            u1: clamp(high[0].ceil() + 1.0, camera.width),
+            v1: clamp(high[1].ceil() + 1.0, camera.height),
+        }
+    }
+}
+
+/// A camera-from-world pose looking at `target` from a random elevation, azimuth and
+/// distance in `view`, the image's x-axis level (OpenCV axes: x right, y down, z forward).
+fn look_at<R: Rng>(target: &Point3<f64>, view: &ViewRange, rng: &mut R) -> Isometry3<f64> {
+    let mut between = |(low, high): (f64, f64)| low + (high - low) * rng.random::<f64>();
+    let elevation = between(view.elevation_deg).to_radians();
+    let distance = between(view.distance);
+    let azimuth = between((0.0, std::f64::consts::TAU));
+    let eye = target
+        + distance
+            * Vector3::new(
+                elevation.cos() * azimuth.cos(),
+                elevation.cos() * azimuth.sin(),
+                elevation.sin(),
+            );
+    let forward = (target - eye).normalize();
+    let right = forward.cross(&Vector3::z()).normalize();
+    let down = forward.cross(&right);
+    let camera_from_world = Rotation3::from_matrix_unchecked(nalgebra::Matrix3::from_rows(&[
+        right.transpose(),
+        down.transpose(),
+        forward.transpose(),
+    ]));
+    let rotation = UnitQuaternion::from_rotation_matrix(&camera_from_world);
+    Isometry3::from_parts(Translation3::from(-(rotation * eye.coords)), rotation)
+}
+
+/// BOP's boxes `[x, y, w, h]` and pixel counts of a frame.
+fn gt_info(mask: &[bool], mask_visib: &[bool], depth: &[f32], width: usize) -> GtInfo {
+    let bbox = |pixels: &[bool]| match mask_box(pixels, width) {
+        Some([u0, v0, u1, v1]) => [u0, v0, u1 - u0, v1 - v0].map(i64::from),
+        None => [-1; 4],
+    };
+    let count = |pixels: &[bool], valid_only: bool| {
+        pixels
+            .iter()
+            .zip(depth)
+            .filter(|&(&m, &d)| m && (!valid_only || d > 0.0))
+            .count() as u64
+    };
+    let (all, visib) = (count(mask, false), count(mask_visib, false));
+    GtInfo {
+        bbox_obj: bbox(mask),
+        bbox_visib: bbox(mask_visib),
+        px_count_all: all,
+        px_count_valid: count(mask, true),
+        px_count_visib: visib,
+        visib_fract: if all == 0 {
+            0.0
+        } else {
+            visib as f64 / all as f64
+        },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    #[test]
+    fn the_camera_looks_at_the_target_from_the_range_asked_for() {
+        let view = ViewRange::default();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let target = Point3::new(0.02, -0.03, 0.05);
+        for _ in 0..50 {
+            let camera_from_world = look_at(&target, &view, &mut rng);
+            let seen = camera_from_world * target;
+            assert!(seen.x.abs() < 1e-9 && seen.y.abs() < 1e-9, "{seen}");
+            assert!((0.5..=1.0).contains(&seen.z));
+            // The world's up points up in the image (negative y), and the elevation is in range.
+            let up = camera_from_world.rotation * Vector3::z();
+            assert!(up.y < 0.0 && up.x.abs() < 1e-9);
+            let eye = camera_from_world.inverse() * Point3::origin();
+            let elevation = ((eye - target).z / (eye - target).norm())
+                .asin()
+                .to_degrees();
+            assert!(
+                (15.0 - 1e-9..=80.0 + 1e-9).contains(&elevation),
+                "{elevation}"
+            );
+        }
+    }
+}
