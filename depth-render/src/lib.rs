@@ -5,7 +5,7 @@
 //!   normals, colours and texture coordinates; [`load_mesh`] reads PLY and OBJ files,
 //!   [`load_vertices`] their vertices alone (point clouds) and [`write_ply`] writes PLY;
 //!   [`primitives`] builds closed, outward-wound shapes with exact dimensions and [`Primitive`]
-//!   names them with their analytic symmetry groups ([`metrics::SymmetryGroup`]).
+//!   names them with their analytic symmetries ([`ShapeSymmetry`]).
 //! - [`resting_poses`]: the faces of the convex hull an object can stand on, with their
 //!   probabilities; [`RestingPose::on_table`] places it on a table.
 //! - [`PinholeCamera`]: OpenCV intrinsics; depth is z-depth.
@@ -66,4 +66,4 @@ pub use render::{Instance, NO_TRIANGLE, Rendering, Scene, Window};
 pub use resting::{RestingPose, group_by_symmetry, resting_poses};
 pub use sampling::sample_surface;
 pub use shading::{ImageTexture, Lighting, Material};
-pub use symmetry::Primitive;
+pub use symmetry::{Primitive, ShapeSymmetry};

@@ -19,13 +19,7 @@ use crate::{RenderError, TriangleMesh};
 /// unreadable or truncated files, missing `x`/`y`/`z` or face indices, non-finite coordinates or
 /// attributes, indices out of range, zero-area faces.
 pub fn load_mesh(path: &Path, scale: f64) -> Result<TriangleMesh, RenderError> {
-    if !(scale.is_finite() && scale > 0.0) {
-        return Err(file_error(
-            path,
-            "scale",
-            format!("must be positive, got {scale}"),
-        ));
-    }
+    check_scale(path, scale)?;
     let raw = read_raw(path)?;
     let Some(polygons) = &raw.polygons else {
         return Err(file_error(path, "face", "missing".into()));
@@ -96,13 +90,7 @@ pub struct Vertices {
 /// header or body, a missing `vertex` element, a vertex without `x`, a non-finite coordinate, a
 /// zero-length normal.
 pub fn load_vertices(path: &Path, scale: f64) -> Result<Vertices, RenderError> {
-    if !(scale.is_finite() && scale > 0.0) {
-        return Err(file_error(
-            path,
-            "scale",
-            format!("must be positive, got {scale}"),
-        ));
-    }
+    check_scale(path, scale)?;
     let raw = read_raw(path)?;
     let mut positions = Vec::with_capacity(raw.positions.len());
     for (i, p) in raw.positions.iter().enumerate() {
@@ -184,6 +172,16 @@ pub fn write_ply(
         }
     }
     Ok(())
+}
+
+/// Refuses a `scale` that is not a positive number, naming the file.
+fn check_scale(path: &Path, scale: f64) -> Result<(), RenderError> {
+    if scale.is_finite() && scale > 0.0 {
+        Ok(())
+    } else {
+        let reason = format!("must be positive, got {scale}");
+        Err(file_error(path, "scale", reason))
+    }
 }
 
 /// Reads a `.ply` or `.obj` file, by its extension.

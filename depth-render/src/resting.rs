@@ -1,7 +1,6 @@
 //! Physically plausible resting poses on a horizontal table: the faces of the convex hull on
 //! which the object stands still, i.e. whose plane holds the projection of the centre of mass
 //! strictly inside the face.
-use metrics::SymmetryGroup;
 use nalgebra::{Isometry3, Point3, Translation3, Unit, UnitQuaternion, Vector3};
 
 use crate::{RenderError, TriangleMesh};
@@ -89,10 +88,14 @@ pub fn resting_poses(mesh: &TriangleMesh) -> Result<Vec<RestingPose>, RenderErro
     Ok(poses)
 }
 
-/// Groups resting poses that a symmetry of the object maps onto each other (continuous axes
-/// sampled every degree): indices into `poses`, groups in order of their first member.
-pub fn group_by_symmetry(poses: &[RestingPose], symmetry: &SymmetryGroup) -> Vec<Vec<usize>> {
-    let rotations = symmetry.rotations(360);
+/// Groups resting poses that a symmetry of the object maps onto each other: indices into
+/// `poses`, groups in order of their first member. `rotations` are the object's symmetry
+/// rotations, continuous axes sampled finely (every degree: `SymmetryGroup::rotations(360)` of
+/// the `metrics` crate).
+pub fn group_by_symmetry(
+    poses: &[RestingPose],
+    rotations: &[UnitQuaternion<f64>],
+) -> Vec<Vec<usize>> {
     let mut groups: Vec<Vec<usize>> = Vec::new();
     for (i, pose) in poses.iter().enumerate() {
         let same = |j: usize| {

@@ -1,9 +1,18 @@
-//! Primitive shapes described by their dimensions, with their analytic symmetry groups in the
-//! `metrics` form (so synthetic data comes with exact ground-truth symmetry sets).
-use metrics::{ContinuousSymmetry, SymmetryGroup};
-use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
+//! Primitive shapes described by their dimensions, with their analytic symmetries (so synthetic
+//! data comes with exact ground-truth symmetry sets; `metrics::SymmetryGroup::about_origin`
+//! turns them into the scoring crate's groups).
+use nalgebra::{Matrix3, Rotation3, Unit, UnitQuaternion, Vector3};
 
 use crate::{RenderError, TriangleMesh, primitives};
+
+/// The proper symmetries of a shape about its origin: it looks the same turned by any of them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ShapeSymmetry {
+    /// Rotations other than the identity that map the shape onto itself.
+    pub discrete: Vec<UnitQuaternion<f64>>,
+    /// Axes of revolution through the origin, combined with every discrete rotation.
+    pub continuous: Vec<Unit<Vector3<f64>>>,
+}
 
 /// A primitive shape (metres, centred at the origin, axis of revolution z).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -113,17 +122,16 @@ impl Primitive {
     /// for a cube, 11 for the tetrahedron, 59 for the icosahedron, all without the identity),
     /// and for solids of revolution the z-axis plus, for the cylinder, the half-turn that swaps
     /// its caps. A sphere's symmetry (all of SO(3)) has no such form: an error.
-    pub fn symmetry(&self) -> Result<SymmetryGroup, RenderError> {
-        let revolution = |flip: bool| SymmetryGroup {
+    pub fn symmetry(&self) -> Result<ShapeSymmetry, RenderError> {
+        let revolution = |flip: bool| ShapeSymmetry {
             discrete: if flip {
-                vec![Isometry3::rotation(Vector3::x() * std::f64::consts::PI)]
+                vec![UnitQuaternion::from_scaled_axis(
+                    Vector3::x() * std::f64::consts::PI,
+                )]
             } else {
                 Vec::new()
             },
-            continuous: vec![ContinuousSymmetry {
-                axis: Vector3::z_axis(),
-                offset: Vector3::zeros(),
-            }],
+            continuous: vec![Vector3::z_axis()],
         };
         let polyhedron = |mesh: TriangleMesh, one_sided: bool| {
             let points: Vec<Vector3<f64>> =
@@ -131,9 +139,8 @@ impl Primitive {
             let discrete = vertex_symmetries(&points)
                 .into_iter()
                 .filter(|r| !one_sided || (r * Vector3::z()).z > 0.5)
-                .map(|rotation| Isometry3::from_parts(Translation3::identity(), rotation))
                 .collect();
-            SymmetryGroup {
+            ShapeSymmetry {
                 discrete,
                 continuous: Vec::new(),
             }

@@ -5,9 +5,15 @@ use depth_render::{
     Instance, PinholeCamera, Primitive, RenderError, Scene, TriangleMesh, Window,
     group_by_symmetry, primitives, resting_poses,
 };
-use metrics::{ContinuousSymmetry, SymmetryGroup};
+use metrics::SymmetryGroup;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use proptest::prelude::*;
+
+/// The symmetry rotations of `shape`, its axes of revolution sampled every degree.
+fn every_degree(shape: Primitive) -> Vec<UnitQuaternion<f64>> {
+    let symmetry = shape.symmetry().unwrap();
+    SymmetryGroup::about_origin(&symmetry.discrete, &symmetry.continuous).rotations(360)
+}
 
 fn closed(mesh: &TriangleMesh) -> bool {
     let mut edges: HashMap<(u32, u32), i32> = HashMap::new();
@@ -148,10 +154,10 @@ proptest! {
         let rotation = UnitQuaternion::from_scaled_axis(axis.normalize() * angle);
         let mut s = UnitQuaternion::identity();
         if !symmetry.discrete.is_empty() {
-            s = symmetry.discrete[pick % symmetry.discrete.len()].rotation;
+            s = symmetry.discrete[pick % symmetry.discrete.len()];
         }
         if let Some(axis) = symmetry.continuous.first() {
-            s = UnitQuaternion::from_axis_angle(&axis.axis, turn) * s;
+            s = UnitQuaternion::from_axis_angle(axis, turn) * s;
         }
         let place = |r: UnitQuaternion<f64>| Isometry3::from_parts(Translation3::new(0.0, 0.0, 0.5), r);
         let (a, b) = (depth_at(&scene, place(rotation)), depth_at(&scene, place(rotation * s)));
@@ -174,7 +180,7 @@ fn a_box_rests_on_six_faces_three_up_to_symmetry() {
     assert!((total - 1.0).abs() < 1e-9);
     // The largest faces (0.2 × 0.3, normal ±x) are the likeliest.
     assert!(poses[0].normal.x.abs() > 0.999 && (poses[0].offset - 0.05).abs() < 1e-6);
-    let groups = group_by_symmetry(&poses, &shape.symmetry().unwrap());
+    let groups = group_by_symmetry(&poses, &every_degree(shape));
     assert_eq!(groups.len(), 3);
     // Resting on a face puts the box on the table, face down.
     let placed = poses[0].on_table(0.7, 0.1, -0.2);
@@ -198,20 +204,14 @@ fn a_can_rests_on_its_caps_and_side() {
     };
     let poses = resting_poses(&shape.mesh().unwrap()).unwrap();
     assert_eq!(poses.len(), 2 + 48);
-    let axis_only = SymmetryGroup {
-        discrete: Vec::new(),
-        continuous: vec![ContinuousSymmetry {
-            axis: Vector3::z_axis(),
-            offset: Vector3::zeros(),
-        }],
-    };
+    let axis_only = SymmetryGroup::about_origin(&[], &[Vector3::z_axis()]).rotations(360);
     assert_eq!(
         group_by_symmetry(&poses, &axis_only).len(),
         3,
         "top, bottom, side"
     );
     assert_eq!(
-        group_by_symmetry(&poses, &shape.symmetry().unwrap()).len(),
+        group_by_symmetry(&poses, &every_degree(shape)).len(),
         2,
         "caps, side"
     );

@@ -203,6 +203,24 @@ impl SymmetryGroup {
         Value::Object(fields)
     }
 
+    /// The group of rotations about the origin: `discrete` rotations other than the identity
+    /// and axes of revolution through the origin (as `depth_render::ShapeSymmetry` gives them).
+    pub fn about_origin(discrete: &[UnitQuaternion<f64>], axes: &[Unit<Vector3<f64>>]) -> Self {
+        Self {
+            discrete: discrete
+                .iter()
+                .map(|&rotation| Isometry3::from_parts(Translation3::identity(), rotation))
+                .collect(),
+            continuous: axes
+                .iter()
+                .map(|&axis| ContinuousSymmetry {
+                    axis,
+                    offset: Vector3::zeros(),
+                })
+                .collect(),
+        }
+    }
+
     /// A group of `n`-fold rotations about `axis` (`n ≥ 1`; `n = 1` is no symmetry).
     pub fn cyclic(axis: &Vector3<f64>, n: u32) -> Result<Self, MetricsError> {
         let discrete = (1..n.max(1))

@@ -37,7 +37,9 @@ fn the_writers_round_trip_through_the_readers() {
         height: 0.1,
         segments: 32,
     };
-    let info = ModelInfo::of_mesh(&can.mesh().unwrap(), &can.symmetry().unwrap());
+    let shape = can.symmetry().unwrap();
+    let group = metrics::SymmetryGroup::about_origin(&shape.discrete, &shape.continuous);
+    let info = ModelInfo::of_mesh(&can.mesh().unwrap(), &group);
     let models = BTreeMap::from([
         (1, info.clone()),
         (

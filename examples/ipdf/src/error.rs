@@ -26,6 +26,9 @@ pub enum PipelineError {
     /// Scores of distributions.
     #[error(transparent)]
     Metrics(#[from] metrics::MetricsError),
+    /// A figure that could not be drawn.
+    #[error("figure: {0}")]
+    Figure(String),
     /// An option out of its range.
     #[error("{name}: {reason}")]
     InvalidOption {

@@ -194,12 +194,5 @@ pub fn distribution_figure(
     let size = model.config().input_size as usize;
     let grid = Grid::new(level).map_err(|e| PipelineError::option("level", e.to_string()))?;
     let masses = Predictor::new(model).probabilities(&crop_tensor(crop, size), level)?;
-    Ok(plot_distribution(
-        crop,
-        size,
-        &grid.rotations(),
-        &masses,
-        truth,
-        title,
-    ))
+    plot_distribution(crop, size, &grid.rotations(), &masses, truth, title)
 }

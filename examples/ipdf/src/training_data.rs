@@ -32,7 +32,7 @@ pub enum LabelSource {
 
 impl LabelSource {
     /// `single`, `analytical` or `pseudo`.
-    pub fn name(self) -> &'static str {
+    pub const fn name(self) -> &'static str {
         match self {
             Self::Single => "single",
             Self::Analytical => "analytical",

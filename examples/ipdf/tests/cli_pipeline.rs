@@ -76,15 +76,18 @@ fn a_miniature_pipeline_writes_every_artefact() {
             let stem = format!("{object}_{labels}");
             assert_eq!(
                 png_size(&out.join("figures").join(format!("{stem}.png"))),
-                (1000, 430)
+                (1180, 480)
             );
             assert_eq!(
                 png_size(&out.join("figures").join(format!("{stem}_curves.png"))),
-                (1000, 420)
+                (1200, 480)
             );
             assert!(markdown.contains(&format!("figures/{stem}.png")));
         }
     }
+    // The pseudo-label errors of both datasets, one panel each.
+    assert_eq!(png_size(&out.join("figures/label_errors.png")), (1120, 460));
+    assert!(markdown.contains("figures/label_errors.png"));
     for stage in ["synth", "label", "train", "eval", "figures"] {
         assert!(report["timing_s"][stage].as_f64().is_some(), "{stage}");
     }
@@ -166,9 +169,9 @@ fn a_miniature_pipeline_writes_every_artefact() {
         "--out",
         s(&figure),
     ]);
-    assert_eq!(png_size(&figure), (1000, 430));
+    assert_eq!(png_size(&figure), (1180, 480));
     ipdf_json(&["viz", "--train-log", s(&run), "--out", s(&figure)]);
-    assert_eq!(png_size(&figure), (1000, 420));
+    assert_eq!(png_size(&figure), (1200, 480));
 
     // Bad inputs: one line each.
     let data = out.join("data/uniform");

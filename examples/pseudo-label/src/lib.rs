@@ -53,5 +53,5 @@ pub use instance::{
     label_instance, observed_cloud, observed_features, refine_pose, score_pose,
 };
 pub use model::ObjectModel;
-pub use report::{LabelReport, ObjectLabelScores, report};
+pub use report::{COVERAGE_ANGLE_DEG, LabelReport, ObjectLabelScores, report};
 pub use score::{Observation, PixelLattice, render_and_compare};

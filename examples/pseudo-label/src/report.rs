@@ -31,6 +31,10 @@ pub struct ObjectLabelScores {
     pub labels: usize,
     /// Mean over labels of the angle to the nearest ground-truth symmetric rotation (degrees).
     pub label_maad_deg: f64,
+    /// Each label's angle to the nearest ground-truth symmetric rotation (degrees), for figures;
+    /// not written to the report file.
+    #[serde(skip)]
+    pub errors_deg: Vec<f64>,
     /// Mean over labelled instances of the fraction of symmetry classes
     /// ([`metrics::SymmetryGroup::classes`]: the identity and each discrete symmetry, with its
     /// continuous orbit) within 5° of a label.
@@ -135,10 +139,12 @@ pub fn report(
                     .map(|label| group.class_distances(&truth.pose.rotation, &label.pose.rotation))
                     .collect();
                 for per_class in &distances {
-                    entry.1 += per_class
+                    let error = per_class
                         .iter()
                         .fold(f64::INFINITY, |a, &b| a.min(b))
                         .to_degrees();
+                    entry.1 += error;
+                    entry.0.errors_deg.push(error);
                     entry.0.labels += 1;
                 }
                 let classes = distances[0].len();

@@ -140,7 +140,10 @@ impl SynthObject {
         Ok(Self {
             name: kind.name().to_string(),
             mesh: primitive.mesh()?,
-            symmetry: primitive.symmetry()?,
+            symmetry: {
+                let shape = primitive.symmetry()?;
+                SymmetryGroup::about_origin(&shape.discrete, &shape.continuous)
+            },
             colour: kind.colour(),
         })
     }

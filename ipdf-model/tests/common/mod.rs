@@ -61,6 +61,9 @@ pub fn cube_renders(count: usize, seed: u64, size: usize) -> CubeRenders {
     CubeRenders {
         images: crops_to_tensor(&crops, size).unwrap(),
         poses,
-        group: cube.symmetry().unwrap(),
+        group: {
+            let shape = cube.symmetry().unwrap();
+            metrics::SymmetryGroup::about_origin(&shape.discrete, &shape.continuous)
+        },
     }
 }

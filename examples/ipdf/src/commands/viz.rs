@@ -65,7 +65,7 @@ pub fn run(args: &VizArgs) -> Result<serde_json::Value> {
         let info = RunInfo::read(run)?;
         let model = ImplicitPdf::load(run, default_device())?;
         let size = model.config().input_size as usize;
-        let title = format!("{} {} LABELS", info.object, info.labels);
+        let title = format!("{}, trained on {} labels", info.object, info.labels);
         match (&args.rgb, &args.mask, args.scene, args.image) {
             (Some(rgb), Some(mask), _, _) => {
                 let crop = crop_files(rgb, mask, size)?;

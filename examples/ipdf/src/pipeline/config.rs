@@ -11,7 +11,8 @@ use serde_json::Value;
 use crate::PipelineError;
 
 /// A size of run.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Preset {
     /// Minutes on a laptop CPU: 800 training frames per object, a small CNN on 48-pixel crops.
     Quick,
@@ -87,22 +88,27 @@ impl std::str::FromStr for Preset {
     }
 }
 
-/// What a run does: a preset's plan, possibly with frames and epochs overridden.
-#[derive(Debug, Clone, PartialEq)]
+/// What a run does: a preset's plan, possibly with frames and epochs overridden. Serialised
+/// (with the seed) as `pipeline_config.json` and the `"config"` of `report.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Plan {
     /// The preset it started from.
     pub preset: Preset,
     /// Training frames per object of the uniform dataset.
+    #[serde(rename = "frames_per_object")]
     pub frames: usize,
     /// Validation frames per object of the uniform dataset.
+    #[serde(rename = "val_frames_per_object")]
     pub val_frames: usize,
     /// Frames per object of the textured dataset (labelled, not trained on).
+    #[serde(rename = "texture_frames_per_object")]
     pub texture_frames: usize,
     /// The encoder of the Single / Analytical / Pseudo models.
     pub encoder: EncoderKind,
     /// Side of the square crops (pixels).
     pub input_size: usize,
-    /// Widths of the head's layers.
+    /// Widths of the head's layers (written comma-separated, as `--head` takes them).
+    #[serde(with = "comma_separated")]
     pub head: Vec<i64>,
     /// Epochs.
     pub epochs: u64,
@@ -121,8 +127,31 @@ pub struct Plan {
     /// Encoders also trained on pseudo labels (the paper's backbone comparison).
     pub backbones: Vec<EncoderKind>,
     /// Models trained at once, each on one CPU thread: small models leave a second core
-    /// partly idle, so two at a time finish sooner than one on two threads.
+    /// partly idle, so two at a time finish sooner than one on two threads. How, not what: not
+    /// recorded.
+    #[serde(skip, default = "one")]
     pub concurrent_models: usize,
+}
+
+fn one() -> usize {
+    1
+}
+
+/// `head` as `"64,64"`.
+mod comma_separated {
+    use serde::{Deserialize, Deserializer, Serializer, de::Error};
+
+    pub fn serialize<S: Serializer>(widths: &[i64], serializer: S) -> Result<S::Ok, S::Error> {
+        let text: Vec<String> = widths.iter().map(i64::to_string).collect();
+        serializer.serialize_str(&text.join(","))
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(deserializer: D) -> Result<Vec<i64>, D::Error> {
+        String::deserialize(deserializer)?
+            .split(',')
+            .map(|w| w.trim().parse::<i64>().map_err(D::Error::custom))
+            .collect()
+    }
 }
 
 impl Plan {
@@ -133,64 +162,23 @@ impl Plan {
 
     /// The settings that decide the run's outputs, as recorded.
     pub fn config(&self, seed: u64) -> PipelineConfig {
-        let head: Vec<String> = self.head.iter().map(i64::to_string).collect();
         PipelineConfig {
-            preset: self.preset.name().into(),
+            plan: self.clone(),
             seed,
-            frames_per_object: self.frames,
-            val_frames_per_object: self.val_frames,
-            texture_frames_per_object: self.texture_frames,
-            encoder: self.encoder.name().into(),
-            input_size: self.input_size,
-            head: head.join(","),
-            epochs: self.epochs,
-            steps_per_epoch: self.steps_per_epoch,
-            batch_size: self.batch_size,
-            learning_rate: self.learning_rate,
-            query_level: self.query_level,
-            eval_level: self.eval_level,
-            occlusion: self.occlusion.clone(),
-            backbones: self.backbones.iter().map(|b| b.name().into()).collect(),
             training_data: "uniform".into(),
         }
     }
 }
 
-/// `pipeline_config.json`, and the `"config"` of `report.json`.
+/// `pipeline_config.json`, and the `"config"` of `report.json`: the plan, the seed and the
+/// dataset trained on.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PipelineConfig {
-    /// `quick` or `paper`.
-    pub preset: String,
+    /// What the run does.
+    #[serde(flatten)]
+    pub plan: Plan,
     /// The run's seed.
     pub seed: u64,
-    /// Training frames per object.
-    pub frames_per_object: usize,
-    /// Validation frames per object.
-    pub val_frames_per_object: usize,
-    /// Frames per object of the textured dataset.
-    pub texture_frames_per_object: usize,
-    /// The encoder's name.
-    pub encoder: String,
-    /// Crop side (pixels).
-    pub input_size: usize,
-    /// Head widths, comma-separated.
-    pub head: String,
-    /// Epochs.
-    pub epochs: u64,
-    /// Steps per epoch.
-    pub steps_per_epoch: u64,
-    /// Images per step.
-    pub batch_size: usize,
-    /// Peak learning rate.
-    pub learning_rate: f64,
-    /// Level of the training queries.
-    pub query_level: u8,
-    /// Level of the scores.
-    pub eval_level: u8,
-    /// Occlusion settings.
-    pub occlusion: Vec<bool>,
-    /// Encoders of the backbone comparison.
-    pub backbones: Vec<String>,
     /// The dataset trained on.
     pub training_data: String,
 }

@@ -28,7 +28,7 @@ pub use workers::on_threads;
 
 use crate::PipelineError;
 use crate::evaluation::{EvalRequest, EvalResult, distribution_figure, eval_file, evaluate_run};
-use crate::plots::{plot_training_curves, write_png};
+use crate::plots::{plot_label_errors, plot_training_curves, write_png};
 use crate::progress::bar;
 use crate::run_info::RunInfo;
 use crate::training::{TrainRequest, is_trained, train_model};
@@ -36,8 +36,6 @@ use crate::training_data::{LabelSource, crop_files};
 
 /// The objects of the run.
 const OBJECTS: [ObjectKind; 3] = [ObjectKind::Can, ObjectKind::Box, ObjectKind::Bowl];
-/// The label types of the Single / Analytical / Pseudo models.
-const LABELS: [&str; 3] = ["single", "analytical", "pseudo"];
 
 /// What `ipdf pipeline` prints: where the report and figures are, and the time per stage.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -328,7 +326,37 @@ fn draw_figures(
             stem,
         });
     }
+    draw_label_errors(out, &figures.join(LABEL_ERRORS_FIGURE))?;
     Ok(entries)
+}
+
+/// The figure of the pseudo-label errors of both datasets, per object.
+const LABEL_ERRORS_FIGURE: &str = "label_errors.png";
+
+/// Draws [`LABEL_ERRORS_FIGURE`] from the labels and ground truth of the training splits (the
+/// report files hold the means only), unless it exists.
+fn draw_label_errors(out: &Path, path: &Path) -> Result<(), PipelineError> {
+    if path.exists() {
+        return Ok(());
+    }
+    let mut reports = Vec::new();
+    for variant in Variant::ALL {
+        let dataset = BopDataset::open(&data_dir(out, variant), "models")?;
+        let names = dataset.read_info()?.unwrap_or_default().names;
+        reports.push(pseudo_label::report(
+            &dataset,
+            "train",
+            &names,
+            variant.name(),
+        )?);
+    }
+    let panels: Vec<(&str, &LabelReport)> = Variant::ALL
+        .iter()
+        .map(|v| v.name())
+        .zip(&reports)
+        .collect();
+    write_png(path, &plot_label_errors(&panels)?)?;
+    Ok(())
 }
 
 /// The distribution figure of `run`'s model for the first validation image of its object.
@@ -360,7 +388,11 @@ fn first_validation_figure(
                 .get(&info.obj_id)
                 .map(|m| m.symmetry.clone())
                 .unwrap_or_default();
-            let title = format!("{} {} LABELS", run.object.name(), run.labels.name());
+            let title = format!(
+                "{}, trained on {} labels",
+                run.object.name(),
+                run.labels.name()
+            );
             return distribution_figure(
                 &model,
                 &crop,

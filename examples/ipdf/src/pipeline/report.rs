@@ -4,8 +4,8 @@ use std::collections::BTreeMap;
 use metrics::{RECALL_THRESHOLD, recall_min_log_density};
 use serde::{Deserialize, Serialize};
 
-use super::LABELS;
 use super::config::PipelineConfig;
+use crate::training_data::LabelSource;
 
 /// The scores of one model.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -60,6 +60,13 @@ pub struct FigureEntry {
     pub stem: String,
 }
 
+/// The rows of the Single / Analytical / Pseudo tables.
+const LABELS: [&str; 3] = [
+    LabelSource::Single.name(),
+    LabelSource::Analytical.name(),
+    LabelSource::Pseudo.name(),
+];
+
 /// The paper's figures for comparison: (LLH, MAAD, Recall MAAD) of its Pseudo models, on
 /// average over the objects, without and with occlusion.
 const PAPER_PSEUDO: [(f64, f64, f64); 2] = [(3.79, 6.26, 2.18), (3.70, 7.72, 2.17)];
@@ -99,15 +106,15 @@ impl Report {
             "# ipdf-rs pipeline report ({} preset)\n\nTrained on the uniform-colour dataset ({} training and {} validation frames per object); \
              encoder {} on {} px crops, {} epochs × {} steps × {} images; scored on the validation split on the level-{} grid \
              (level 2 refined hierarchically; LLH at the ground-truth rotations themselves) against each instance's full ground-truth symmetry set.\n\n## Results by type of ground truth and object\n\n",
-            config.preset,
-            config.frames_per_object,
-            config.val_frames_per_object,
-            config.encoder,
-            config.input_size,
-            config.epochs,
-            config.steps_per_epoch,
-            config.batch_size,
-            config.eval_level
+            config.plan.preset.name(),
+            config.plan.frames,
+            config.plan.val_frames,
+            config.plan.encoder.name(),
+            config.plan.input_size,
+            config.plan.epochs,
+            config.plan.steps_per_epoch,
+            config.plan.batch_size,
+            config.plan.eval_level
         );
         model_table(&mut text, &self.models, &LABELS);
         let [plain, occluded] = PAPER_PSEUDO;
@@ -171,5 +178,9 @@ impl Report {
                 cell("texture", &coverage)
             ));
         }
+        text.push_str(
+            "\nEvery label's error, as a cumulative distribution per object and dataset: \
+             ![label errors](figures/label_errors.png)\n",
+        );
     }
 }

@@ -1,12 +1,15 @@
 //! The training curves of a run: loss and validation LLH per epoch, from `train_log.csv`.
-use image::RgbImage;
-
-use super::canvas::{Canvas, text_width};
 use bop_dataset::FileError;
+use image::RgbImage;
+use plotters::coord::Shift;
+use plotters::prelude::*;
 
-const BLACK: [u8; 3] = [0, 0, 0];
-const BLUE: [u8; 3] = [31, 119, 180];
-const ORANGE: [u8; 3] = [255, 127, 14];
+use super::style::{FONT, draw_figure, figure_error};
+use crate::PipelineError;
+
+/// matplotlib's first two colours.
+const BLUE: RGBColor = RGBColor(31, 119, 180);
+const ORANGE: RGBColor = RGBColor(255, 127, 14);
 
 /// One panel's series: `(epoch, value)`.
 type Series = Vec<(f64, f64)>;
@@ -53,111 +56,111 @@ pub fn read_train_log(text: &str, path: &std::path::Path) -> Result<(Series, Ser
     Ok((losses, llhs))
 }
 
-/// Draws one panel at `(left, top)` of `width × height` pixels.
+/// The grid the validation LLH of `train_log.csv` is measured on (`FitOptions::validation_level`
+/// of `ipdf train`: the dense level-2 grid).
+const VALIDATION_GRID: &str = "dense level-2 grid, 4,608 cells";
+
+/// One panel: `series` against epochs, with tick values, axis labels and a legend.
 fn panel(
-    canvas: &mut Canvas,
-    (left, top, width, height): (f64, f64, f64, f64),
+    area: &DrawingArea<BitMapBackend<'_>, Shift>,
     title: &str,
+    y_label: &str,
+    legend: &str,
     series: &Series,
-    colour: [u8; 3],
-) {
-    canvas.text(left as i64, top as i64 - 30, title, 2, BLACK);
-    let corners = [
-        (left, top),
-        (left + width, top),
-        (left + width, top + height),
-        (left, top + height),
-        (left, top),
-    ];
-    for pair in corners.windows(2) {
-        canvas.line(pair[0], pair[1], 1.0, BLACK);
-    }
-    if series.is_empty() {
-        canvas.text(
-            left as i64 + 10,
-            (top + 0.5 * height) as i64,
-            "NO VALIDATION DATA",
-            2,
-            BLACK,
-        );
-        return;
-    }
-    let (x_low, x_high) = series
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
-            (a.min(p.0), b.max(p.0))
-        });
-    let (y_low, y_high) = series
+    colour: RGBColor,
+) -> Result<(), PipelineError> {
+    // Epochs are whole numbers: an integer axis gets integer ticks.
+    let points: Vec<(i64, f64)> = series.iter().map(|&(e, v)| (e.round() as i64, v)).collect();
+    let x_low = points.iter().map(|p| p.0).min().unwrap_or(0);
+    let x_high = points.iter().map(|p| p.0).max().unwrap_or(1).max(x_low + 1);
+    let (y_low, y_high) = points
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
             (a.min(p.1), b.max(p.1))
         });
-    let (x_span, y_span) = ((x_high - x_low).max(1e-9), (y_high - y_low).max(1e-9));
-    let at = |(x, y): (f64, f64)| {
-        (
-            left + 10.0 + (x - x_low) / x_span * (width - 20.0),
-            top + height - 10.0 - (y - y_low) / y_span * (height - 20.0),
-        )
+    let margin = 0.08 * (y_high - y_low).max(1e-3);
+    let (y_low, y_high) = if points.is_empty() {
+        (0.0, 1.0)
+    } else {
+        (y_low - margin, y_high + margin)
     };
-    for pair in series.windows(2) {
-        canvas.line(at(pair[0]), at(pair[1]), 2.5, colour);
+    let mut chart = ChartBuilder::on(area)
+        .caption(title, (FONT, 20))
+        .margin(12)
+        .x_label_area_size(46)
+        .y_label_area_size(64)
+        .build_cartesian_2d(x_low..x_high, y_low..y_high)
+        .map_err(figure_error)?;
+    chart
+        .configure_mesh()
+        .x_desc("epoch")
+        .y_desc(y_label)
+        .x_labels(10)
+        .y_labels(8)
+        .y_label_formatter(&|y| format!("{y:.2}"))
+        .label_style((FONT, 14))
+        .axis_desc_style((FONT, 15))
+        .light_line_style(RGBColor(235, 235, 235))
+        .draw()
+        .map_err(figure_error)?;
+    if series.is_empty() {
+        let style = (FONT, 16).into_text_style(area);
+        chart
+            .draw_series(std::iter::once(Text::new(
+                "no validation split",
+                (x_low, 0.5),
+                style,
+            )))
+            .map_err(figure_error)?;
+        return Ok(());
     }
-    for &point in series {
-        let (x, y) = at(point);
-        canvas.disc(x, y, 3.5, colour);
-    }
-    let format = |v: f64| format!("{v:.3}");
-    canvas.text(
-        left as i64 - text_width(&format(y_high), 1) - 6,
-        top as i64 + 6,
-        &format(y_high),
-        1,
-        BLACK,
-    );
-    canvas.text(
-        left as i64 - text_width(&format(y_low), 1) - 6,
-        (top + height) as i64 - 14,
-        &format(y_low),
-        1,
-        BLACK,
-    );
-    let (first, last) = (format!("{x_low:.0}"), format!("{x_high:.0}"));
-    canvas.text(left as i64 + 6, (top + height) as i64 + 8, &first, 1, BLACK);
-    canvas.text(
-        (left + width) as i64 - text_width(&last, 1) - 6,
-        (top + height) as i64 + 8,
-        &last,
-        1,
-        BLACK,
-    );
-    canvas.text(
-        (left + 0.5 * width) as i64 - text_width("EPOCH", 1) / 2,
-        (top + height) as i64 + 8,
-        "EPOCH",
-        1,
-        BLACK,
-    );
+    chart
+        .draw_series(LineSeries::new(
+            points.iter().copied(),
+            colour.stroke_width(2),
+        ))
+        .map_err(figure_error)?
+        .label(legend)
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], colour.stroke_width(2)));
+    chart
+        .draw_series(
+            points
+                .iter()
+                .map(|&point| Circle::new(point, 3, colour.filled())),
+        )
+        .map_err(figure_error)?;
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .label_font((FONT, 14))
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()
+        .map_err(figure_error)
 }
 
 /// The figure of a run's `train_log.csv` text: training loss and validation LLH per epoch.
-pub fn plot_training_curves(text: &str, path: &std::path::Path) -> Result<RgbImage, FileError> {
+pub fn plot_training_curves(text: &str, path: &std::path::Path) -> Result<RgbImage, PipelineError> {
     let (losses, llhs) = read_train_log(text, path)?;
-    let mut canvas = Canvas::new(1000, 420, [255, 255, 255]);
-    panel(
-        &mut canvas,
-        (80.0, 60.0, 380.0, 310.0),
-        "TRAINING LOSS",
-        &losses,
-        BLUE,
-    );
-    panel(
-        &mut canvas,
-        (580.0, 60.0, 380.0, 310.0),
-        "VALIDATION LLH",
-        &llhs,
-        ORANGE,
-    );
-    Ok(canvas.into_image())
+    draw_figure(1200, 480, |root| {
+        let panels = root.split_evenly((1, 2));
+        panel(
+            &panels[0],
+            "Training loss",
+            "loss (nats)",
+            "training loss",
+            &losses,
+            BLUE,
+        )?;
+        panel(
+            &panels[1],
+            &format!("Validation LLH ({VALIDATION_GRID})"),
+            "LLH (nats)",
+            "validation LLH",
+            &llhs,
+            ORANGE,
+        )
+    })
 }
 
 #[cfg(test)]
@@ -173,7 +176,8 @@ mod tests {
         assert_eq!(losses, vec![(1.0, 5.5), (2.0, 4.0), (3.0, 3.0)]);
         assert_eq!(llhs, vec![(1.0, -1.0), (2.0, 0.5)]);
         let image = plot_training_curves(text, Path::new("t.csv")).unwrap();
-        assert!(image.pixels().any(|p| p.0 == BLUE) && image.pixels().any(|p| p.0 == ORANGE));
+        let has = |c: RGBColor| image.pixels().any(|p| p.0 == [c.0, c.1, c.2]);
+        assert!(has(BLUE) && has(ORANGE));
         let bad = "epoch,loss,validation_llh\n1,x,2\n";
         assert_eq!(
             read_train_log(bad, Path::new("t.csv")).unwrap_err().field,

@@ -1,13 +1,16 @@
-//! Figures as PNG images, drawn without system fonts: the Implicit-PDF visualisation of a
-//! distribution over SO(3) ([`plot_distribution`]) and a run's training curves
-//! ([`plot_training_curves`]).
-mod canvas;
+//! Figures as PNG images, drawn with plotters and an embedded font (no system font needed): the
+//! Implicit-PDF visualisation of a distribution over SO(3) ([`plot_distribution`]), a run's
+//! training curves ([`plot_training_curves`]) and the errors of pseudo labels
+//! ([`plot_label_errors`]).
 mod curves;
 mod distribution;
+mod label_errors;
+mod style;
 
-pub use canvas::{Canvas, hue};
 pub use curves::{plot_training_curves, read_train_log};
 pub use distribution::plot_distribution;
+pub use label_errors::plot_label_errors;
+pub use style::hue;
 
 /// Writes `image` as a PNG atomically.
 pub fn write_png(
