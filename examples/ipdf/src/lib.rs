@@ -1,19 +1,23 @@
-//! The pieces of the `ipdf` command line that other programs can reuse: training data from BOP
-//! datasets ([`training_data`]), training runs ([`training`]), scores of Implicit-PDF models ([`evaluation`]), the record of a
-//! training run ([`run_info`]), figures ([`plots`]), `.npy` output ([`npy`]), progress bars and
-//! point-cloud files ([`cloud_file`]) and the process allocator, and the whole
-//! pipeline of `ipdf pipeline` ([`pipeline`]). Datasets, synthetic data and labelling are crates of their own
-//! (`bop-dataset`, `synth-data`, `pseudo-label`); the commands live in `src/commands/`.
+//! The `ipdf` command line's library, for programs of your own: training data from BOP datasets
+//! ([`training_data`]), training runs ([`training`]), scores of Implicit-PDF models
+//! ([`evaluation`]), the record of a training run ([`run_info`]), the whole pipeline of
+//! `ipdf pipeline` ([`pipeline`]), figures ([`plots`]), `.npy` output ([`npy`]), point-cloud
+//! files ([`cloud_file`]), progress bars and the process allocator. Datasets, synthetic data and
+//! labelling are crates of their own (`bop-dataset`, `synth-data`, `pseudo-label`, none of which
+//! links libtorch); the commands live in `src/commands/` and map flags onto these functions.
 //!
-//! ```no_run
-//! use bop_dataset::BopDataset;
-//! use ipdf::training_data::{ExampleOptions, load_examples};
+//! ```
+//! use ipdf::pipeline::Preset;
+//! use ipdf::plots::plot_training_curves;
 //!
-//! // The validation crops of object 1 of a dataset written by `ipdf synth`, with each
-//! // instance's ground-truth symmetry set, ready for `ipdf_model` at 48 pixels.
-//! let dataset = BopDataset::new("runs/demo/data/uniform".as_ref());
-//! let examples = load_examples(&dataset, &ExampleOptions::evaluation("val", 1, 48))?;
-//! println!("{} images", examples.instances.len());
+//! // The quick preset, shortened: what `ipdf pipeline --epochs 2` runs.
+//! let plan = ipdf::pipeline::Plan { epochs: 2, ..Preset::Quick.plan() };
+//! assert_eq!(plan.total_steps(), 100);
+//! // A run's training curves from its `train_log.csv`.
+//! let log = "epoch,step,loss,learning_rate,validation_llh,seconds,images_per_second\n\
+//!            1,50,3.1,4e-3,-1.2,30,26\n2,100,2.2,2e-3,0.7,30,26\n";
+//! let figure = plot_training_curves(log, "train_log.csv".as_ref())?;
+//! assert_eq!(figure.dimensions(), (1200, 480));
 //! # Ok::<(), ipdf::PipelineError>(())
 //! ```
 pub mod allocator;

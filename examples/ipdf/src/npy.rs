@@ -30,18 +30,6 @@ impl RotationFormat {
     }
 }
 
-impl std::str::FromStr for RotationFormat {
-    type Err = String;
-
-    /// A format by its [`RotationFormat::name`].
-    fn from_str(name: &str) -> Result<Self, String> {
-        Self::ALL
-            .into_iter()
-            .find(|f| f.name() == name)
-            .ok_or_else(|| format!("{name:?}: expected quat or matrix"))
-    }
-}
-
 /// Writes `rotations` to `path` as float32 `.npy` (atomically).
 pub fn write_rotations(
     path: &Path,

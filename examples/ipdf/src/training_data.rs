@@ -13,9 +13,10 @@ use rayon::prelude::*;
 use tch::{Kind, Tensor};
 
 use bop_dataset::{
-    BopDataset, FileError, PseudoInstance, read_models_info, read_pseudo_gt, read_scene_gt,
-    read_scene_gt_info,
+    BopDataset, FileError, PseudoInstance, SceneDir, read_models_info, read_pseudo_gt,
+    read_scene_gt, read_scene_gt_info,
 };
+use metrics::SymmetryGroup;
 
 use crate::PipelineError;
 
@@ -42,18 +43,6 @@ impl LabelSource {
 
     /// Every source.
     pub const ALL: [Self; 3] = [Self::Single, Self::Analytical, Self::Pseudo];
-}
-
-impl std::str::FromStr for LabelSource {
-    type Err = String;
-
-    /// A source by its [`LabelSource::name`].
-    fn from_str(name: &str) -> Result<Self, String> {
-        Self::ALL
-            .into_iter()
-            .find(|s| s.name() == name)
-            .ok_or_else(|| format!("{name:?}: expected single, analytical or pseudo"))
-    }
 }
 
 /// Which instances become examples, and how.
@@ -141,114 +130,137 @@ pub fn load_examples(
         })?;
     let mut pending = Vec::new();
     for scene_id in dataset.scene_ids(&options.split)? {
-        let scene = dataset.scene(&options.split, scene_id);
-        let gt = scene
-            .gt_path()
-            .exists()
-            .then(|| read_scene_gt(&scene.gt_path()))
-            .transpose()?;
-        let visible = scene
-            .gt_info_path()
-            .exists()
-            .then(|| read_scene_gt_info(&scene.gt_info_path()))
-            .transpose()?;
-        let pseudo: Option<BTreeMap<u32, Vec<PseudoInstance>>> = match options.labels {
-            LabelSource::Pseudo => {
-                let path = scene.pseudo_gt_path();
-                if !path.exists() {
-                    return Err(FileError::new(
-                        &path,
-                        "file",
-                        format!(
-                            "missing: make the pseudo labels first with `ipdf label --dataset {} --split {}`",
-                            dataset.root.display(),
-                            options.split
-                        ),
-                    )
-                    .into());
-                }
-                Some(read_pseudo_gt(&path)?)
+        pending.extend(scene_instances(dataset, scene_id, options, &group)?);
+    }
+    let place = format!(
+        "object {} in split {:?} of {}",
+        options.obj_id,
+        options.split,
+        dataset.root.display()
+    );
+    if pending.is_empty() {
+        let reason = format!("no labelled instance of {place}");
+        return Err(PipelineError::option("dataset", reason));
+    }
+    let (pending, crops) = crop_instances(dataset, options, pending)?;
+    if pending.is_empty() {
+        let reason = format!("every instance of {place} has an empty visible mask");
+        return Err(PipelineError::option("dataset", reason));
+    }
+    let size = options.input_size as i64;
+    let crops = Tensor::from_slice(&crops.concat())
+        .reshape([pending.len() as i64, 3, size, size])
+        .to_kind(Kind::Uint8);
+    let has_truth = pending.iter().all(|p| p.truth.is_some());
+    Ok(Examples {
+        crops,
+        truth_sets: has_truth.then(|| pending.iter().filter_map(|p| p.truth.clone()).collect()),
+        label_sets: pending.iter().map(|p| p.labels.clone()).collect(),
+        instances: pending.iter().map(|p| p.at).collect(),
+    })
+}
+
+/// The instances of `options.obj_id` in scene `scene_id` with a label set, visible enough.
+fn scene_instances(
+    dataset: &BopDataset,
+    scene_id: u32,
+    options: &ExampleOptions,
+    group: &SymmetryGroup,
+) -> Result<Vec<Pending>, PipelineError> {
+    let scene = dataset.scene(&options.split, scene_id);
+    let optional = |path: PathBuf| path.exists().then_some(path);
+    let gt = optional(scene.gt_path())
+        .map(|p| read_scene_gt(&p))
+        .transpose()?;
+    let visible = optional(scene.gt_info_path())
+        .map(|p| read_scene_gt_info(&p))
+        .transpose()?;
+    let pseudo = match options.labels {
+        LabelSource::Pseudo => Some(read_scene_pseudo_gt(dataset, &scene, &options.split)?),
+        _ => None,
+    };
+    // Which object each mask shows: from the ground truth, or from the pseudo labels.
+    let object_ids: BTreeMap<u32, Vec<u32>> = match (&gt, &pseudo) {
+        (Some(gt), _) => gt
+            .iter()
+            .map(|(&im, list)| (im, list.iter().map(|i| i.obj_id).collect()))
+            .collect(),
+        (None, Some(pseudo)) => pseudo
+            .iter()
+            .map(|(&im, list)| (im, list.iter().map(|i| i.obj_id).collect()))
+            .collect(),
+        (None, None) => {
+            let reason = format!(
+                "missing: {} labels need the ground truth",
+                options.labels.name()
+            );
+            return Err(FileError::new(&scene.gt_path(), "file", reason).into());
+        }
+    };
+    let mut out = Vec::new();
+    for (im_id, ids) in object_ids {
+        for (instance, &obj_id) in ids.iter().enumerate() {
+            let fraction = visible
+                .as_ref()
+                .and_then(|v| v.get(&im_id)?.get(instance))
+                .map_or(1.0, |info| info.visib_fract);
+            if obj_id != options.obj_id || fraction < options.min_visible_fraction {
+                continue;
             }
-            _ => None,
-        };
-        // Which object each mask shows: from the ground truth, or from the pseudo labels.
-        let object_ids: BTreeMap<u32, Vec<u32>> = match (&gt, &pseudo) {
-            (Some(gt), _) => gt
-                .iter()
-                .map(|(&im, list)| (im, list.iter().map(|i| i.obj_id).collect()))
-                .collect(),
-            (None, Some(pseudo)) => pseudo
-                .iter()
-                .map(|(&im, list)| (im, list.iter().map(|i| i.obj_id).collect()))
-                .collect(),
-            (None, None) => {
-                return Err(FileError::new(
-                    &scene.gt_path(),
-                    "file",
-                    format!(
-                        "missing: {} labels need the ground truth",
-                        options.labels.name()
-                    ),
-                )
-                .into());
-            }
-        };
-        for (im_id, ids) in object_ids {
-            for (instance, &obj_id) in ids.iter().enumerate() {
-                if obj_id != options.obj_id {
-                    continue;
-                }
-                let fraction = visible
+            let truth = gt.as_ref().and_then(|gt| gt.get(&im_id)?.get(instance));
+            let labels = match options.labels {
+                LabelSource::Single => truth.map(|t| vec![t.pose.rotation]),
+                LabelSource::Analytical => truth.map(|t| {
+                    let symmetries = group.rotations(options.continuous_steps);
+                    symmetries.iter().map(|s| t.pose.rotation * s).collect()
+                }),
+                LabelSource::Pseudo => pseudo
                     .as_ref()
-                    .and_then(|v| v.get(&im_id)?.get(instance))
-                    .map_or(1.0, |info| info.visib_fract);
-                if fraction < options.min_visible_fraction {
-                    continue;
-                }
-                let truth_pose = gt.as_ref().and_then(|gt| gt.get(&im_id)?.get(instance));
-                let truth = truth_pose.map(|t| group.expand(&t.pose.rotation));
-                let labels = match options.labels {
-                    LabelSource::Single => truth_pose.map(|t| vec![t.pose.rotation]),
-                    LabelSource::Analytical => truth_pose.map(|t| {
-                        group
-                            .rotations(options.continuous_steps)
-                            .iter()
-                            .map(|s| t.pose.rotation * s)
-                            .collect()
-                    }),
-                    LabelSource::Pseudo => pseudo
-                        .as_ref()
-                        .and_then(|p| p.get(&im_id)?.get(instance))
-                        .map(|p| p.labels.iter().map(|l| l.pose.rotation).collect()),
-                };
-                let Some(labels) = labels.filter(|l: &Vec<_>| !l.is_empty()) else {
-                    continue;
-                };
-                pending.push(Pending {
-                    at: InstanceRef {
-                        scene_id,
-                        im_id,
-                        instance,
-                    },
-                    labels,
-                    truth,
-                });
-            }
+                    .and_then(|p| p.get(&im_id)?.get(instance))
+                    .map(|p| p.labels.iter().map(|l| l.pose.rotation).collect()),
+            };
+            let Some(labels) = labels.filter(|l: &Vec<_>| !l.is_empty()) else {
+                continue;
+            };
+            out.push(Pending {
+                at: InstanceRef {
+                    scene_id,
+                    im_id,
+                    instance,
+                },
+                labels,
+                truth: truth.map(|t| group.expand(&t.pose.rotation)),
+            });
         }
     }
-    if pending.is_empty() {
-        return Err(PipelineError::option(
-            "dataset",
-            format!(
-                "no labelled instance of object {} in split {:?} of {}",
-                options.obj_id,
-                options.split,
-                dataset.root.display()
-            ),
-        ));
+    Ok(out)
+}
+
+/// The scene's `scene_pseudo_gt.json`; a missing one is an error saying how to make it.
+fn read_scene_pseudo_gt(
+    dataset: &BopDataset,
+    scene: &SceneDir,
+    split: &str,
+) -> Result<BTreeMap<u32, Vec<PseudoInstance>>, FileError> {
+    let path = scene.pseudo_gt_path();
+    if !path.exists() {
+        let reason = format!(
+            "missing: make the pseudo labels first with `ipdf label --dataset {} --split {split}`",
+            dataset.root.display(),
+        );
+        return Err(FileError::new(&path, "file", reason));
     }
-    // Crops; an instance whose visible mask is empty (fully occluded: BOP keeps them, with
-    // `visib_fract` 0) is left out, like one below the visible fraction.
+    read_pseudo_gt(&path)
+}
+
+/// The crops of `pending`, in parallel; an instance whose visible mask is empty (fully
+/// occluded: BOP keeps them, with `visib_fract` 0) is left out, like one below the visible
+/// fraction.
+fn crop_instances(
+    dataset: &BopDataset,
+    options: &ExampleOptions,
+    pending: Vec<Pending>,
+) -> Result<(Vec<Pending>, Vec<Vec<u8>>), PipelineError> {
     let crops: Vec<Option<Vec<u8>>> = pending
         .par_iter()
         .map(|p| {
@@ -264,33 +276,11 @@ pub fn load_examples(
             }
         })
         .collect::<Result<_, PipelineError>>()?;
-    let (pending, crops): (Vec<Pending>, Vec<Vec<u8>>) = pending
+    Ok(pending
         .into_iter()
         .zip(crops)
         .filter_map(|(p, crop)| Some((p, crop?)))
-        .unzip();
-    if pending.is_empty() {
-        return Err(PipelineError::option(
-            "dataset",
-            format!(
-                "every instance of object {} in split {:?} of {} has an empty visible mask",
-                options.obj_id,
-                options.split,
-                dataset.root.display()
-            ),
-        ));
-    }
-    let size = options.input_size as i64;
-    let crops = Tensor::from_slice(&crops.concat())
-        .reshape([pending.len() as i64, 3, size, size])
-        .to_kind(Kind::Uint8);
-    let has_truth = pending.iter().all(|p| p.truth.is_some());
-    Ok(Examples {
-        crops,
-        truth_sets: has_truth.then(|| pending.iter().filter_map(|p| p.truth.clone()).collect()),
-        label_sets: pending.iter().map(|p| p.labels.clone()).collect(),
-        instances: pending.iter().map(|p| p.at).collect(),
-    })
+        .unzip())
 }
 
 /// The object a run is for: `obj_id` or the object named `name` (`dataset_info.json`), or the

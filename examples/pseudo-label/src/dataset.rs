@@ -37,18 +37,6 @@ impl Strategy {
     }
 }
 
-impl std::str::FromStr for Strategy {
-    type Err = String;
-
-    /// A strategy by its [`Strategy::name`].
-    fn from_str(name: &str) -> Result<Self, String> {
-        Self::ALL
-            .into_iter()
-            .find(|s| s.name() == name)
-            .ok_or_else(|| format!("{name:?}: expected reseed or trials"))
-    }
-}
-
 /// Options of the labelling; lengths are fractions of the object's diameter so that one set
 /// fits objects of any size.
 #[derive(Debug, Clone, PartialEq)]

@@ -105,21 +105,6 @@ impl ObjectKind {
     }
 }
 
-impl std::str::FromStr for ObjectKind {
-    type Err = String;
-
-    /// A built-in object by its [`ObjectKind::name`].
-    fn from_str(name: &str) -> Result<Self, String> {
-        Self::ALL
-            .into_iter()
-            .find(|kind| kind.name() == name)
-            .ok_or_else(|| {
-                let names: Vec<_> = Self::ALL.iter().map(|k| k.name()).collect();
-                format!("{name:?}: expected one of {}", names.join(", "))
-            })
-    }
-}
-
 /// An object of a synthetic dataset.
 #[derive(Debug, Clone)]
 pub struct SynthObject {

@@ -40,18 +40,6 @@ impl Variant {
     pub const ALL: [Self; 2] = [Self::Uniform, Self::Texture];
 }
 
-impl std::str::FromStr for Variant {
-    type Err = String;
-
-    /// A variant by its [`Variant::name`].
-    fn from_str(name: &str) -> Result<Self, String> {
-        Self::ALL
-            .into_iter()
-            .find(|v| v.name() == name)
-            .ok_or_else(|| format!("{name:?}: expected uniform or texture"))
-    }
-}
-
 /// Options of [`synthesize`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct SynthOptions {

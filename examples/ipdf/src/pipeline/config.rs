@@ -76,18 +76,6 @@ impl Preset {
     }
 }
 
-impl std::str::FromStr for Preset {
-    type Err = String;
-
-    /// A preset by its [`Preset::name`].
-    fn from_str(name: &str) -> Result<Self, String> {
-        Self::ALL
-            .into_iter()
-            .find(|p| p.name() == name)
-            .ok_or_else(|| format!("{name:?}: expected quick or paper"))
-    }
-}
-
 /// What a run does: a preset's plan, possibly with frames and epochs overridden. Serialised
 /// (with the seed) as `pipeline_config.json` and the `"config"` of `report.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

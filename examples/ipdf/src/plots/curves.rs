@@ -99,7 +99,7 @@ fn panel(
         .y_labels(8)
         .y_label_formatter(&|y| format!("{y:.2}"))
         .label_style((FONT, 14))
-        .axis_desc_style((FONT, 15))
+        .axis_desc_style((FONT, 16))
         .light_line_style(RGBColor(235, 235, 235))
         .draw()
         .map_err(figure_error)?;

@@ -110,7 +110,7 @@ fn draw_crop(root: &Area<'_>, crop: &[u8], size: usize) -> Result<(), PipelineEr
     let caption = format!("input crop ({size} × {size} px)");
     root.draw_text(
         &caption,
-        &(FONT, 15).into_text_style(root),
+        &(FONT, 16).into_text_style(root),
         (left, top + side + 10),
     )
     .map_err(figure_error)
@@ -119,7 +119,7 @@ fn draw_crop(root: &Area<'_>, crop: &[u8], size: usize) -> Result<(), PipelineEr
 /// Meridians every 60° and parallels every 30°, with their degrees.
 fn draw_graticule(root: &Area<'_>) -> Result<(), PipelineError> {
     let pixel = |(x, y): (f64, f64)| (x.round() as i32, y.round() as i32);
-    let label = (FONT, 13).into_text_style(root);
+    let label = (FONT, 14).into_text_style(root);
     for degrees in (-180i32..=180).step_by(60) {
         let longitude = f64::from(degrees).to_radians();
         let points: Vec<_> = (-90..=90)

@@ -59,7 +59,7 @@ fn panel(
             }
         })
         .y_label_formatter(&|y| format!("{y:.1}"))
-        .label_style((FONT, 13))
+        .label_style((FONT, 14))
         .axis_desc_style((FONT, 14))
         .light_line_style(RGBColor(235, 235, 235))
         .draw()
@@ -104,7 +104,7 @@ fn panel(
     chart
         .configure_series_labels()
         .position(SeriesLabelPosition::LowerRight)
-        .label_font((FONT, 13))
+        .label_font((FONT, 14))
         .background_style(WHITE.mix(0.9))
         .border_style(BLACK)
         .draw()

@@ -94,4 +94,38 @@ mod tests {
         assert_eq!(inked(&blank), 0);
         assert!(inked(&text) > 50, "{}", inked(&text));
     }
+
+    /// The lowest row where `a` and `b` differ, or where `a` is inked when `b` is `None`.
+    fn lowest_row(a: &RgbImage, b: Option<&RgbImage>) -> u32 {
+        a.enumerate_pixels()
+            .filter(|(x, y, p)| match b {
+                Some(b) => b.get_pixel(*x, *y) != *p,
+                None => p.0 != [255; 3],
+            })
+            .map(|(_, y, _)| y)
+            .max()
+            .unwrap_or(0)
+    }
+
+    #[test]
+    fn a_point_sits_on_the_baseline_at_every_size_the_figures_use() {
+        // plotters places each glyph at `size / 2 + top` truncated towards zero, which lifts
+        // small glyphs by a pixel at odd sizes; the figures use even sizes only.
+        for size in [12, 14, 16, 20, 22] {
+            let text = |words: &'static str| {
+                draw_figure(60, 40, move |root| {
+                    let style = (FONT, size).into_text_style(root);
+                    root.draw_text(words, &style, (5, 5)).map_err(figure_error)
+                })
+                .unwrap()
+            };
+            let (digit, with_point) = (text("0"), text("0."));
+            let baseline = lowest_row(&digit, None);
+            let point = lowest_row(&with_point, Some(&digit));
+            assert!(
+                baseline.abs_diff(point) <= 1,
+                "size {size}: {baseline} {point}"
+            );
+        }
+    }
 }
