@@ -37,6 +37,19 @@ pub struct BopCamera {
     pub depth_scale: f64,
 }
 
+impl BopCamera {
+    /// Writes the camera as BOP's dataset-level `camera.json` (`fx fy cx cy width height
+    /// depth_scale`), atomically; [`camera_from_json`] reads it back.
+    pub fn write(&self, path: &Path) -> Result<(), FileError> {
+        let c = &self.camera;
+        let entry = serde_json::json!({
+            "cx": c.cx, "cy": c.cy, "depth_scale": self.depth_scale, "fx": c.fx, "fy": c.fy,
+            "height": c.height, "width": c.width,
+        });
+        crate::write_json(path, &entry)
+    }
+}
+
 /// Intrinsics without an image size, as BOP's per-image `scene_camera.json` entries give them.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Intrinsics {
@@ -286,5 +299,22 @@ mod tests {
         );
         let error = camera_from_json(&k, path, "3.", None).unwrap_err();
         assert_eq!(error.field, "3.width");
+    }
+
+    #[test]
+    fn a_written_dataset_camera_reads_back() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("camera.json");
+        let intrinsics = Intrinsics {
+            fx: 1075.65,
+            fy: 1073.9,
+            cx: 321.5,
+            cy: 239.25,
+            depth_scale: 0.1,
+        };
+        let camera = intrinsics.camera(640, 480).unwrap();
+        camera.write(&path).unwrap();
+        let back = camera_from_json(&read_json(&path).unwrap(), &path, "", None).unwrap();
+        assert_eq!(back, camera);
     }
 }

@@ -33,6 +33,11 @@ impl BopDataset {
         })
     }
 
+    /// The dataset-level `camera.json`.
+    pub fn camera_path(&self) -> PathBuf {
+        self.root.join("camera.json")
+    }
+
     /// `models/models_info.json`.
     pub fn models_info_path(&self) -> PathBuf {
         self.models.join("models_info.json")

@@ -62,7 +62,7 @@ impl LabelReport {
         })
     }
 
-    /// A markdown table of the same.
+    /// A markdown table of the same, one row per object in id order.
     pub fn to_markdown(&self) -> String {
         let mut text = format!(
             "Pseudo-label accuracy ({}): label MAAD = mean angle from a label to the nearest \
@@ -71,7 +71,9 @@ impl LabelReport {
              |---|---|---|---|---|---|\n",
             self.variant
         );
-        for (name, s) in &self.objects {
+        let mut rows: Vec<_> = self.objects.iter().collect();
+        rows.sort_by_key(|(_, s)| s.obj_id);
+        for (name, s) in rows {
             text += &format!(
                 "| {} | {} | {} | {} | {:.2} | {:.1}% |\n",
                 name,

@@ -241,13 +241,7 @@ fn write_models(
         models.insert(obj_id, ModelInfo::of_mesh(&object.mesh, &object.symmetry));
     }
     write_models_info(&dataset.models_info_path(), &models)?;
-    let camera = &options.camera;
-    let camera_json = json!({
-        "cx": camera.camera.cx, "cy": camera.camera.cy, "depth_scale": camera.depth_scale,
-        "fx": camera.camera.fx, "fy": camera.camera.fy,
-        "height": camera.camera.height, "width": camera.camera.width,
-    });
-    write_json(&dataset.root.join("camera.json"), &camera_json)?;
+    options.camera.write(&dataset.camera_path())?;
     dataset.write_info(&info)?;
     write_json(&options_path, &recorded_options)?;
     Ok(())
