@@ -26,6 +26,7 @@ test: setup
 lint: setup
 	$(CARGO) fmt --all --check
 	$(CARGO) clippy --workspace --all-targets -- -D warnings
+	RUSTDOCFLAGS="-D warnings" $(CARGO) doc --no-deps --workspace --exclude benches
 
 bench: setup
 	# glibc backs large allocations with transparent huge pages: fewer page faults on the

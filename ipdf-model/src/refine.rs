@@ -137,7 +137,7 @@ type Leaf = (u8, u64, f64);
 
 /// The distribution of an unnormalised log-density `log_density(level, cells) → F` (one value
 /// per cell centre), refined best-first from a dense `options.start_level` grid: each round
-/// replaces the heaviest cells coarser than `options.level` (see [`MIN_ROUND`]) by their 8
+/// replaces the heaviest cells coarser than `options.level` (see `MIN_ROUND`) by their 8
 /// children,
 /// until those coarse cells hold less than `1 − keep_mass` of the mass or the query budget is
 /// spent. Unrefined cells keep their coarse mass `exp F · volume`; all masses are normalised
@@ -146,7 +146,7 @@ type Leaf = (u8, u64, f64);
 ///
 /// The normaliser corrects what the centre value misses on a cell left coarse: `exp` is convex,
 /// so where `F` slopes across a cell its mean exceeds `exp F(centre)` (on the demo's can models
-/// this undercounted `Z` by up to 3%, against dense level 4). See [`slope_factor`].
+/// this undercounted `Z` by up to 3%, against dense level 4). See `slope_factor`.
 pub fn refine<F>(mut log_density: F, options: &RefineOptions) -> Result<CellMasses, ModelError>
 where
     F: FnMut(u8, &[u64]) -> Result<Vec<f64>, ModelError>,

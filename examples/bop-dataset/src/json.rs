@@ -123,7 +123,7 @@ pub fn intrinsics_from_json(
     })
 }
 
-/// Parses a camera from `value` (see [`intrinsics_from_json`]). `size` supplies width and
+/// Parses a camera from `value` (`cam_K` or `fx fy cx cy`, and `depth_scale`). `size` supplies width and
 /// height when the object has none (BOP's per-image entries).
 pub fn camera_from_json(
     value: &Value,

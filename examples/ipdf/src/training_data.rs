@@ -394,7 +394,7 @@ pub fn to_unit_floats(crops: &Tensor) -> Tensor {
 }
 
 /// `count` examples of `object` rendered in memory (no dataset on disk): frames as
-/// [`crate::synth`] draws them, uniform colour, crops of `size` pixels, each labelled and
+/// [`synth_data::FrameRenderer`] draws them, uniform colour, crops of `size` pixels, each labelled and
 /// scored with its full symmetry set. For tests and examples.
 pub fn rendered_examples(
     object: &synth_data::SynthObject,

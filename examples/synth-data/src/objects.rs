@@ -8,7 +8,7 @@ use metrics::SymmetryGroup;
 
 use bop_dataset::FileError;
 
-/// A built-in object.
+/// A built-in object (sizes and symmetries: [`ObjectKind::description`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ObjectKind {
     /// YCB 002 master-chef can: a cylinder 102 mm across, 140 mm tall (axis + flip).
@@ -53,6 +53,24 @@ impl ObjectKind {
             Self::Icosahedron => "icosahedron",
             Self::Cone => "cone",
             Self::Cylinder => "cylinder",
+        }
+    }
+
+    /// What the object is, with its size and its symmetries.
+    pub fn description(self) -> &'static str {
+        match self {
+            Self::Can => {
+                "YCB 002 master-chef can: a cylinder 102 mm across, 140 mm tall (axis + flip)"
+            }
+            Self::Box => {
+                "YCB 003 cracker box: 60 × 158 × 210 mm (the 4 rotations of a box with distinct edges)"
+            }
+            Self::Bowl => "YCB 024 bowl: 159 mm across, 53 mm tall (its axis)",
+            Self::Tetrahedron => "SYMSOL tetrahedron, circumradius 60 mm (12 rotations)",
+            Self::Cube => "SYMSOL cube, 80 mm edges (24 rotations)",
+            Self::Icosahedron => "SYMSOL icosahedron, circumradius 60 mm (60 rotations)",
+            Self::Cone => "SYMSOL cone, 100 mm across, 100 mm tall (its axis)",
+            Self::Cylinder => "SYMSOL cylinder, 80 mm across, 120 mm tall (axis + flip)",
         }
     }
 

@@ -1,6 +1,6 @@
 //! Command-line values of the libraries' named enums (which know nothing of clap): their names
 //! are the possible values, listed in `--help` and in errors.
-use clap::builder::{PossibleValuesParser, TypedValueParser};
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 
 /// A library enum the command line names: every value (`ALL`) and its `name()`.
 pub trait Named: Copy + Send + Sync + 'static {
@@ -8,6 +8,10 @@ pub trait Named: Copy + Send + Sync + 'static {
     fn all() -> &'static [Self];
     /// The value's name on the command line and in files.
     fn name(self) -> &'static str;
+    /// What the value means, for `--help`, where its flag's own help does not say.
+    fn help(self) -> Option<&'static str> {
+        None
+    }
 }
 
 macro_rules! named {
@@ -24,8 +28,21 @@ macro_rules! named {
     )*};
 }
 
+impl Named for synth_data::ObjectKind {
+    fn all() -> &'static [Self] {
+        &Self::ALL
+    }
+
+    fn name(self) -> &'static str {
+        Self::name(self)
+    }
+
+    fn help(self) -> Option<&'static str> {
+        Some(self.description())
+    }
+}
+
 named!(
-    synth_data::ObjectKind,
     synth_data::Variant,
     pseudo_label::Strategy,
     ipdf::training_data::LabelSource,
@@ -35,8 +52,14 @@ named!(
 
 /// The value parser of `T`: one of its names.
 pub fn choice<T: Named>() -> impl TypedValueParser<Value = T> {
-    let names: Vec<&'static str> = T::all().iter().map(|value| value.name()).collect();
-    PossibleValuesParser::new(names).try_map(|name| {
+    let values = T::all().iter().map(|&value| {
+        let possible = PossibleValue::new(value.name());
+        match value.help() {
+            Some(help) => possible.help(help),
+            None => possible,
+        }
+    });
+    PossibleValuesParser::new(values).try_map(|name| {
         T::all()
             .iter()
             .copied()
