@@ -14,8 +14,9 @@ pub trait Named: Copy + Send + Sync + 'static {
     }
 }
 
+/// `Named` for each type, from its `ALL` and `name()`; `=> f` adds `f(value)` as the help.
 macro_rules! named {
-    ($($kind:ty),* $(,)?) => {$(
+    ($($kind:ty $(=> $help:path)?),* $(,)?) => {$(
         impl Named for $kind {
             fn all() -> &'static [Self] {
                 &<$kind>::ALL
@@ -24,25 +25,16 @@ macro_rules! named {
             fn name(self) -> &'static str {
                 <$kind>::name(self)
             }
+
+            $(fn help(self) -> Option<&'static str> {
+                Some($help(self))
+            })?
         }
     )*};
 }
 
-impl Named for synth_data::ObjectKind {
-    fn all() -> &'static [Self] {
-        &Self::ALL
-    }
-
-    fn name(self) -> &'static str {
-        Self::name(self)
-    }
-
-    fn help(self) -> Option<&'static str> {
-        Some(self.description())
-    }
-}
-
 named!(
+    synth_data::ObjectKind => synth_data::ObjectKind::description,
     synth_data::Variant,
     pseudo_label::Strategy,
     ipdf::training_data::LabelSource,

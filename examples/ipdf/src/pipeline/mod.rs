@@ -163,8 +163,7 @@ fn label_datasets(
             let progress = bar(dataset.image_count("train")? as u64, "images");
             label_dataset(&dataset, &dataset_options, &options, &progress)?;
             progress.finish_and_clear();
-            let names = dataset.read_info()?.unwrap_or_default().names;
-            pseudo_label::report(&dataset, "train", &names, variant.name())?.write(&path)?;
+            score_labels(out, variant)?.write(&path)?;
         }
         let report: LabelReport = read_json_as(&path)?;
         for (object, scores) in report.objects {
@@ -178,6 +177,19 @@ fn label_datasets(
         }
     }
     Ok(accuracy)
+}
+
+/// The pseudo labels of `variant`'s training split scored against its ground truth (the per-label
+/// errors included, which `labels_{variant}.json` does not keep).
+fn score_labels(out: &Path, variant: Variant) -> Result<LabelReport, PipelineError> {
+    let dataset = BopDataset::open(&data_dir(out, variant), "models")?;
+    let names = dataset.read_info()?.unwrap_or_default().names;
+    Ok(pseudo_label::report(
+        &dataset,
+        "train",
+        &names,
+        variant.name(),
+    )?)
 }
 
 /// Stage 3, the models: per object, Single, Analytical and Pseudo labels (with and without
@@ -339,17 +351,10 @@ fn draw_label_errors(out: &Path, path: &Path) -> Result<(), PipelineError> {
     if path.exists() {
         return Ok(());
     }
-    let mut reports = Vec::new();
-    for variant in Variant::ALL {
-        let dataset = BopDataset::open(&data_dir(out, variant), "models")?;
-        let names = dataset.read_info()?.unwrap_or_default().names;
-        reports.push(pseudo_label::report(
-            &dataset,
-            "train",
-            &names,
-            variant.name(),
-        )?);
-    }
+    let reports = Variant::ALL
+        .into_iter()
+        .map(|variant| score_labels(out, variant))
+        .collect::<Result<Vec<_>, _>>()?;
     let panels: Vec<(&str, &LabelReport)> = Variant::ALL
         .iter()
         .map(|v| v.name())
