@@ -84,3 +84,54 @@ fn bad_flags_fail_with_a_one_line_cause() {
         );
     }
 }
+
+/// The flags whose values name a library enum (parsed by the CLI's one `choice` parser).
+#[test]
+fn unknown_names_of_library_values_name_the_flag() {
+    for (args, flag, bad) in [
+        (
+            &["grid", "--level", "1", "--format", "euler"][..],
+            "--format",
+            "euler",
+        ),
+        (
+            &["synth", "--out", "x", "--objects", "can,mug"][..],
+            "--objects",
+            "mug",
+        ),
+        (
+            &["synth", "--out", "x", "--variant", "glossy"][..],
+            "--variant",
+            "glossy",
+        ),
+        (
+            &["label", "--dataset", "x", "--strategy", "guess"][..],
+            "--strategy",
+            "guess",
+        ),
+        (
+            &["train", "--dataset", "x", "--out", "y", "--labels", "gt"][..],
+            "--labels",
+            "gt",
+        ),
+        (
+            &["pipeline", "--out", "x", "--preset", "huge"][..],
+            "--preset",
+            "huge",
+        ),
+    ] {
+        let out = ipdf(args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
+        let expected = format!("invalid value '{bad}' for '{flag} <");
+        assert!(stderr.contains(&expected), "{args:?}: {stderr}");
+    }
+    // The built-in objects are listed with their sizes.
+    let help = ipdf(&["synth", "--help"]);
+    let help = String::from_utf8_lossy(&help.stdout);
+    assert!(
+        help.contains("box:") && help.contains("60 × 158 × 210 mm"),
+        "{help}"
+    );
+}
