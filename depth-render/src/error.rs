@@ -78,6 +78,29 @@ pub enum RenderError {
         /// What is wrong.
         reason: String,
     },
+    /// A mesh whose size at the given scale is not an object's (see [`crate::check_mesh_size`]).
+    #[error(
+        "{}: the mesh is {} across at {setting} {scale}, not the size of an object{}",
+        path.display(),
+        length(*size_m),
+        suggestion.map(|unit| format!(
+            "; is it in {}? {setting} {unit} makes it {} across",
+            unit_name(unit),
+            length(size_m / scale * unit)
+        )).unwrap_or_default()
+    )]
+    MeshScale {
+        /// The mesh file.
+        path: PathBuf,
+        /// Its bounding-box diagonal at `scale` (metres).
+        size_m: f64,
+        /// The scale it was read with (metres per file unit).
+        scale: f64,
+        /// The option that sets the scale.
+        setting: String,
+        /// The common unit (metres per file unit) that gives an object's size, if one does.
+        suggestion: Option<f64>,
+    },
     /// Camera intrinsics that cannot image anything.
     #[error("invalid camera: {reason}")]
     InvalidCamera {
@@ -114,4 +137,26 @@ pub enum RenderError {
         /// Number of instances given.
         count: usize,
     },
+}
+
+/// A length in metres, in the unit that reads best.
+fn length(metres: f64) -> String {
+    if metres >= 1.0 {
+        format!("{metres:.3} m")
+    } else if metres >= 0.001 {
+        format!("{:.1} mm", metres * 1e3)
+    } else {
+        format!("{:.4} mm", metres * 1e3)
+    }
+}
+
+/// The name of a unit given in metres (1, 0.01 or 0.001).
+fn unit_name(unit: f64) -> &'static str {
+    if unit >= 1.0 {
+        "metres"
+    } else if unit >= 0.01 {
+        "centimetres"
+    } else {
+        "millimetres"
+    }
 }

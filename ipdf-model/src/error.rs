@@ -43,7 +43,10 @@ pub enum ModelError {
         reason: String,
     },
     /// A checkpoint was written for another model configuration.
-    #[error("{}: checkpoint is for {field} = {found}, this model has {expected}", path.display())]
+    #[error(
+        "{}: the checkpoint has {field} = {found}, this run asks for {expected}",
+        path.display()
+    )]
     ConfigMismatch {
         /// The checkpoint's configuration file.
         path: PathBuf,

@@ -179,3 +179,35 @@ mod tests {
         assert!(read_rgb(&dir.path().join("missing.png")).is_err());
     }
 }
+
+/// Whether the image file at `path` exists and ends as a whole PNG (its `IEND` chunk) or JPEG
+/// (its end-of-image marker) ends: a cheap test, without decoding, for files that an
+/// interrupted copy or a full disk truncated.
+pub fn image_file_complete(path: &Path) -> bool {
+    use std::io::{Read, Seek, SeekFrom};
+    let Ok(mut file) = std::fs::File::open(path) else {
+        return false;
+    };
+    let mut tail = [0u8; 12];
+    if file.seek(SeekFrom::End(-12)).is_err() || file.read_exact(&mut tail).is_err() {
+        return false;
+    }
+    &tail[4..8] == b"IEND" || tail[10..] == [0xFF, 0xD9]
+}
+
+#[cfg(test)]
+mod completeness_tests {
+    use super::*;
+
+    #[test]
+    fn a_truncated_or_missing_png_is_incomplete() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("mask.png");
+        assert!(!image_file_complete(&path));
+        write_mask(&path, &[true, false, true, true], 2, 2).unwrap();
+        assert!(image_file_complete(&path));
+        let bytes = std::fs::read(&path).unwrap();
+        std::fs::write(&path, &bytes[..bytes.len() - 5]).unwrap();
+        assert!(!image_file_complete(&path));
+    }
+}

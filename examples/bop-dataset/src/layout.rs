@@ -24,13 +24,48 @@ impl BopDataset {
 
     /// The dataset at `root` with meshes in `root/models_dir`; fails when `root` is not a folder.
     pub fn open(root: &Path, models_dir: &str) -> Result<Self, FileError> {
-        if !root.is_dir() {
-            return Err(FileError::new(root, "folder", "not a dataset folder"));
+        if !root.exists() {
+            return Err(FileError::new(root, "folder", "does not exist"));
         }
-        Ok(Self {
+        if !root.is_dir() {
+            return Err(FileError::new(
+                root,
+                "folder",
+                "is a file, not a dataset folder",
+            ));
+        }
+        let dataset = Self {
             root: root.to_path_buf(),
             models: root.join(models_dir),
-        })
+        };
+        dataset.check_models()?;
+        Ok(dataset)
+    }
+
+    /// Fails when the models folder is missing, naming the folders of the dataset that hold a
+    /// `models_info.json` (T-LESS ships `models_cad`, `models_eval` and `models_reconst`).
+    pub fn check_models(&self) -> Result<(), FileError> {
+        if self.models.is_dir() {
+            return Ok(());
+        }
+        let mut candidates: Vec<String> = std::fs::read_dir(&self.root)
+            .into_iter()
+            .flatten()
+            .flatten()
+            .filter(|entry| entry.path().join("models_info.json").is_file())
+            .map(|entry| entry.file_name().to_string_lossy().into_owned())
+            .collect();
+        candidates.sort();
+        let hint = match candidates.as_slice() {
+            [] => "no folder of the dataset holds a models_info.json".to_string(),
+            [one] => format!("choose {one} with --models-dir {one}"),
+            many => format!("choose one of {} with --models-dir", many.join(", ")),
+        };
+        Err(FileError::new(
+            &self.models,
+            "folder",
+            format!("missing: the object meshes and models_info.json are needed; {hint}"),
+        ))
     }
 
     /// The dataset-level `camera.json`.
@@ -49,11 +84,24 @@ impl BopDataset {
     }
 
     /// The scene ids of `split` (its six-digit subfolders), sorted. A missing split is an error
-    /// naming the folder.
+    /// naming the folder and the splits that exist.
     pub fn scene_ids(&self, split: &str) -> Result<Vec<u32>, FileError> {
         let dir = self.root.join(split);
-        let entries = std::fs::read_dir(&dir)
-            .map_err(|e| FileError::new(&dir, "folder", format!("split {split:?}: {e}")))?;
+        if !dir.is_dir() {
+            let splits = self.splits();
+            let known = if splits.is_empty() {
+                "the dataset has no split (a folder of six-digit scene folders)".to_string()
+            } else {
+                format!("the dataset's splits: {}", splits.join(", "))
+            };
+            return Err(FileError::new(
+                &dir,
+                "folder",
+                format!("split {split:?} does not exist; {known}"),
+            ));
+        }
+        let entries =
+            std::fs::read_dir(&dir).map_err(|e| FileError::new(&dir, "folder", e.to_string()))?;
         let mut ids = Vec::new();
         for entry in entries {
             let entry = entry.map_err(|e| FileError::new(&dir, "folder", e.to_string()))?;
@@ -68,6 +116,30 @@ impl BopDataset {
         }
         ids.sort_unstable();
         Ok(ids)
+    }
+
+    /// The splits of the dataset: its subfolders that hold a scene folder (six digits), sorted.
+    pub fn splits(&self) -> Vec<String> {
+        let Ok(entries) = std::fs::read_dir(&self.root) else {
+            return Vec::new();
+        };
+        let is_scene = |name: &std::ffi::OsStr| {
+            name.len() == 6
+                && name
+                    .to_str()
+                    .is_some_and(|n| n.bytes().all(|b| b.is_ascii_digit()))
+        };
+        let mut splits: Vec<String> = entries
+            .flatten()
+            .filter(|entry| {
+                std::fs::read_dir(entry.path()).is_ok_and(|mut scenes| {
+                    scenes.any(|scene| scene.is_ok_and(|s| is_scene(&s.file_name())))
+                })
+            })
+            .map(|entry| entry.file_name().to_string_lossy().into_owned())
+            .collect();
+        splits.sort();
+        splits
     }
 
     /// The images of `split`: the entries of every scene's `scene_camera.json` (scenes without

@@ -54,13 +54,15 @@ mod json;
 mod layout;
 mod models;
 mod pseudo_gt;
+mod recorded;
 mod scene;
 
 pub use atomic::{write_atomically, write_json};
 pub use dataset_info::DatasetInfo;
 pub use error::FileError;
 pub use images::{
-    Image, mask_box, read_depth, read_mask, read_rgb, write_depth, write_mask, write_rgb,
+    Image, image_file_complete, mask_box, read_depth, read_mask, read_rgb, write_depth, write_mask,
+    write_rgb,
 };
 pub use json::{
     BopCamera, Intrinsics, camera_from_json, pose_from_json, pose_to_json, read_json, read_json_as,
@@ -68,6 +70,7 @@ pub use json::{
 pub use layout::{BopDataset, SceneDir};
 pub use models::{ModelInfo, read_models_info, write_mesh_ply, write_models_info};
 pub use pseudo_gt::{PseudoInstance, PseudoLabel, read_pseudo_gt, write_pseudo_gt};
+pub use recorded::{as_recorded, check_recorded};
 pub use scene::{
     GtInfo, GtInstance, read_object_ids, read_scene_camera, read_scene_gt, read_scene_gt_info,
     write_scene_camera, write_scene_gt, write_scene_gt_info,

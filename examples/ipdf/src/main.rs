@@ -80,14 +80,24 @@ const MAX_THREADS: u64 = 1024;
 /// Set in the environment of the process `ipdf` re-executes itself as.
 const REEXECUTED: &str = "IPDF_REEXECUTED";
 
-/// Re-executes this program with glibc backing large allocations by transparent huge pages
-/// (`GLIBC_TUNABLES=glibc.malloc.hugetlb=1`, read only at start-up), unless the caller set
-/// `GLIBC_TUNABLES` itself: libtorch allocates and frees large buffers every training step, and
-/// their page faults cost more than the arithmetic (the quick preset's training step: 38 images/s
-/// without, 60 with, on 2 cores). Returns only when that is not done or fails.
-fn use_huge_pages() {
+/// Re-executes this program with the start-up environment it needs, unless the caller set
+/// those variables itself; returns only when nothing is missing or the re-execution fails:
+/// - glibc backing large allocations by transparent huge pages
+///   (`GLIBC_TUNABLES=glibc.malloc.hugetlb=1`, read only at start-up): libtorch allocates and
+///   frees large buffers every training step, and their page faults cost more than the
+///   arithmetic (the quick preset's training step: 38 images/s without, 60 with, on 2 cores);
+/// - libtorch's CPU kernels pinned to AVX2 ([`ipdf_model::REPRODUCIBLE_CPU_KERNELS`]), so that
+///   a seed gives the same models and scores on every x86-64 machine with AVX2.
+fn reexecute_with_environment() {
     use std::os::unix::process::CommandExt;
-    if std::env::var_os("GLIBC_TUNABLES").is_some() || std::env::var_os(REEXECUTED).is_some() {
+    if std::env::var_os(REEXECUTED).is_some() {
+        return;
+    }
+    let mut missing = ipdf_model::missing_kernel_settings();
+    if std::env::var_os("GLIBC_TUNABLES").is_none() {
+        missing.push(("GLIBC_TUNABLES", "glibc.malloc.hugetlb=1"));
+    }
+    if missing.is_empty() {
         return;
     }
     let Ok(program) = std::env::current_exe() else {
@@ -95,13 +105,37 @@ fn use_huge_pages() {
     };
     let _error = std::process::Command::new(program)
         .args(std::env::args_os().skip(1))
-        .env("GLIBC_TUNABLES", "glibc.malloc.hugetlb=1")
+        .envs(missing)
         .env(REEXECUTED, "1")
         .exec();
 }
 
+/// clap's error in one line: its first line (which names the bad flag or value), its tips (the
+/// nearest command or flag), and the `--help` that lists the possible values: the subcommand's
+/// own where one was named.
+fn usage_error(error: &clap::Error) -> String {
+    let text = error.render().to_string();
+    let cause = text.lines().next().unwrap_or("error: bad arguments");
+    let tips: String = text
+        .lines()
+        .filter_map(|line| line.trim().strip_prefix("tip: "))
+        .map(|tip| format!("; {tip}"))
+        .collect();
+    let cli = <Cli as clap::CommandFactory>::command();
+    let named = std::env::args().skip(1).find_map(|arg| {
+        cli.get_subcommands()
+            .find(|command| command.get_name() == arg)
+            .map(|command| command.get_name().to_string())
+    });
+    let help = match named {
+        Some(command) => format!("ipdf {command} --help"),
+        None => "ipdf --help".into(),
+    };
+    format!("{cause}{tips} (see {help})")
+}
+
 fn main() -> ExitCode {
-    use_huge_pages();
+    reexecute_with_environment();
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         // --help, --version, and no subcommand at all: clap prints the help (and exits 2 for the
@@ -114,10 +148,7 @@ fn main() -> ExitCode {
             error.exit()
         }
         Err(error) => {
-            // clap's first line names the bad flag; the usage that follows is in --help.
-            let text = error.render().to_string();
-            let cause = text.lines().next().unwrap_or("error: bad arguments");
-            eprintln!("{cause} (see ipdf --help)");
+            eprintln!("{}", usage_error(&error));
             return ExitCode::from(2);
         }
     };

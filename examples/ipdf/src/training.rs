@@ -205,10 +205,9 @@ fn open_trainer(request: &TrainRequest, info: &RunInfo) -> Result<Trainer, Pipel
             ));
         }
         let trainer = Trainer::resume(out, device)?;
-        trainer
-            .model()
-            .config()
-            .check_same(&request.model, &out.join(CHECKPOINT_FILE))?;
+        request
+            .model
+            .check_same(trainer.model().config(), &out.join(CHECKPOINT_FILE))?;
         return Ok(trainer);
     }
     let mut model = ImplicitPdf::new(request.model.clone(), device)?;

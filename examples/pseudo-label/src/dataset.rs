@@ -7,15 +7,16 @@ use indicatif::ProgressBar;
 use rayon::prelude::*;
 
 use bop_dataset::{
-    BopDataset, FileError, Intrinsics, PseudoInstance, SceneDir, read_depth, read_mask,
-    read_object_ids, read_scene_camera, write_pseudo_gt,
+    BopDataset, FileError, Intrinsics, PseudoInstance, SceneDir, as_recorded, check_recorded,
+    read_depth, read_mask, read_object_ids, read_scene_camera, write_json, write_pseudo_gt,
 };
 
 use crate::instance::{LabelFailure, label_instance};
 use crate::{LabelError, ObjectModel, Observation, PixelLattice};
 
 /// How the labels of an instance after the first are found.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Strategy {
     /// ICP re-seeded at the best pose composed with each self-symmetry of the model.
     Reseed,
@@ -39,7 +40,7 @@ impl Strategy {
 
 /// Options of the labelling; lengths are fractions of the object's diameter so that one set
 /// fits objects of any size.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct LabelOptions {
     /// K: at most this many labels per instance.
     pub labels: usize,
@@ -197,6 +198,40 @@ pub struct DatasetOptions {
     pub obj_id: Option<u32>,
     /// The scenes of this job.
     pub shard: Shard,
+    /// Label this shard's scenes again, with these options, discarding their labels (else a
+    /// split labelled with other options is refused, see [`LABEL_OPTIONS_FILE`]).
+    pub relabel: bool,
+}
+
+/// The file in a split's folder that records the options its labels were made with: a rerun
+/// with other options is refused (finished scenes would keep the old labels), unless it
+/// relabels.
+pub const LABEL_OPTIONS_FILE: &str = "label_options.json";
+
+/// What `label_options.json` records: everything that decides the labels.
+fn recorded_options(
+    dataset: &BopDataset,
+    dataset_options: &DatasetOptions,
+    options: &LabelOptions,
+) -> serde_json::Value {
+    let models = dataset
+        .models
+        .file_name()
+        .unwrap_or_default()
+        .to_string_lossy();
+    let mut recorded = serde_json::json!({
+        "generator": "ipdf label",
+        "models_dir": models,
+        "mesh_scale": dataset_options.mesh_scale,
+        "obj_id": dataset_options.obj_id,
+    });
+    // The options' fields beside those, so that a difference is named by its own key.
+    if let (Some(all), Ok(serde_json::Value::Object(fields))) =
+        (recorded.as_object_mut(), serde_json::to_value(options))
+    {
+        all.extend(fields);
+    }
+    as_recorded(recorded)
 }
 
 /// Labels every unlabelled scene of `options.split` in this shard (see the module docs);
@@ -208,14 +243,7 @@ pub fn label_dataset(
     progress: &ProgressBar,
 ) -> Result<LabelSummary, LabelError> {
     options.validate()?;
-    if !dataset.models.is_dir() {
-        return Err(FileError::new(
-            &dataset.models,
-            "folder",
-            "missing: labelling needs the object meshes (choose the folder with --models-dir)",
-        )
-        .into());
-    }
+    dataset.check_models()?;
     let started = Instant::now();
     let shard = dataset_options.shard;
     let all_scenes = dataset.scene_ids(&dataset_options.split)?;
@@ -233,6 +261,30 @@ pub fn label_dataset(
         .filter(|(k, _)| k % shard.count == shard.index)
         .map(|(_, id)| id)
         .collect();
+    let options_path = dataset
+        .root
+        .join(&dataset_options.split)
+        .join(LABEL_OPTIONS_FILE);
+    let recorded = recorded_options(dataset, dataset_options, options);
+    if dataset_options.relabel {
+        for &scene_id in &scene_ids {
+            let path = dataset
+                .scene(&dataset_options.split, scene_id)
+                .pseudo_gt_path();
+            if path.exists() {
+                std::fs::remove_file(&path)
+                    .map_err(|e| FileError::new(&path, "file", format!("cannot remove: {e}")))?;
+            }
+        }
+    } else {
+        check_recorded(
+            &options_path,
+            &recorded,
+            "rerun with the same options to complete the split, or add --relabel to label it \
+             again with these",
+        )?;
+    }
+    write_json(&options_path, &recorded)?;
     let mut summary = LabelSummary {
         scenes: scene_ids.len(),
         ..LabelSummary::default()
@@ -349,6 +401,7 @@ fn load_model(
         return Ok(None);
     }
     let mesh = depth_render::load_mesh(&path, dataset_options.mesh_scale)?;
+    depth_render::check_mesh_size(&mesh, &path, dataset_options.mesh_scale, "--mesh-scale")?;
     Ok(Some(Arc::new(ObjectModel::new(obj_id, &mesh, options)?)))
 }
 

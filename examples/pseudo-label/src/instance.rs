@@ -76,6 +76,18 @@ pub enum LabelFailure {
         /// The threshold (mm).
         threshold_mm: f64,
     },
+    /// The observed cloud and the model differ in size by more than a wrong mask explains.
+    #[error(
+        "the observed cloud is {observed_mm:.0} mm across but the model's diameter is \
+         {diameter_mm:.1} mm: a mesh at the wrong scale (--mesh-scale) or depth at the wrong \
+         depth_scale (scene_camera.json)?"
+    )]
+    ScaleMismatch {
+        /// Robust extent of the observed cloud (mm).
+        observed_mm: f64,
+        /// The model's diameter (mm).
+        diameter_mm: f64,
+    },
     /// The instance's object has no model.
     #[error("object {obj_id} is not in models_info.json or has no mesh")]
     UnknownObject {
@@ -95,6 +107,7 @@ impl LabelFailure {
             Self::TooFewPoints { .. } => "too few observed points",
             Self::Registration(_) => "registration failed",
             Self::NoPoseAccepted { .. } => "no pose accepted",
+            Self::ScaleMismatch { .. } => "scale mismatch",
             Self::UnknownObject { .. } => "object without model",
         }
     }
@@ -125,6 +138,36 @@ pub fn observed_cloud(observation: &Observation) -> Result<PointCloud, LabelFail
         return Err(LabelFailure::NoDepth);
     }
     PointCloud::new(points).map_err(|e| LabelFailure::Registration(e.to_string()))
+}
+
+/// The observed cloud's extent as a multiple of the model's diameter beyond which (or below
+/// whose inverse) the two cannot be the same object at the same scale: a mask three times the
+/// object, or a view of a twentieth of it, is not worth registering either.
+const SCALE_RATIO_LIMITS: (f64, f64) = (1.0 / 20.0, 3.0);
+
+/// Refuses an observed cloud whose robust extent (the diagonal of its 2nd–98th percentile
+/// box, so that a few background pixels in the mask do not count) is not the model's size:
+/// checked before features are computed, which would fail on it with a message about point
+/// counts.
+pub fn check_scale(cloud: &PointCloud, diameter: f64) -> Result<(), LabelFailure> {
+    let points = cloud.points();
+    let extent: f64 = (0..3)
+        .map(|axis| {
+            let mut values: Vec<f32> = points.iter().map(|p| p[axis]).collect();
+            values.sort_by(f32::total_cmp);
+            let at = |q: f64| values[((values.len() - 1) as f64 * q).round() as usize];
+            f64::from(at(0.98) - at(0.02)).powi(2)
+        })
+        .sum::<f64>()
+        .sqrt();
+    let ratio = extent / diameter;
+    if ratio > SCALE_RATIO_LIMITS.1 || (points.len() >= 50 && ratio < SCALE_RATIO_LIMITS.0) {
+        return Err(LabelFailure::ScaleMismatch {
+            observed_mm: extent * 1e3,
+            diameter_mm: diameter * 1e3,
+        });
+    }
+    Ok(())
 }
 
 /// A warning when the observed points (downsampled) span more than 1.5 × the model's
@@ -337,8 +380,10 @@ pub fn label_instance(
     options: &LabelOptions,
     seed: u64,
 ) -> InstanceLabels {
-    let view = match observed_cloud(observation).and_then(|cloud| observed_features(&cloud, model))
-    {
+    let view = match observed_cloud(observation).and_then(|cloud| {
+        check_scale(&cloud, model.diameter)?;
+        observed_features(&cloud, model)
+    }) {
         Ok(view) => view,
         Err(failure) => {
             return InstanceLabels {

@@ -46,7 +46,9 @@ mod report;
 mod score;
 pub mod symmetries;
 
-pub use dataset::{DatasetOptions, LabelOptions, LabelSummary, Shard, Strategy, label_dataset};
+pub use dataset::{
+    DatasetOptions, LABEL_OPTIONS_FILE, LabelOptions, LabelSummary, Shard, Strategy, label_dataset,
+};
 pub use error::LabelError;
 pub use instance::{
     InstanceLabels, LabelFailure, align_from, extent_warning, global_alignment, initial_pose,

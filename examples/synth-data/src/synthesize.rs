@@ -14,7 +14,8 @@ use crate::frame::{Frame, FrameRenderer, FrameStyle, ViewRange};
 use crate::{SynthError, SynthObject};
 use bop_dataset::{
     BopCamera, BopDataset, DatasetInfo, FileError, GtInfo, GtInstance, Intrinsics, ModelInfo,
-    SceneDir, read_json, write_json, write_mesh_ply, write_models_info, write_scene_camera,
+    SceneDir, as_recorded, check_recorded, image_file_complete, read_scene_camera, read_scene_gt,
+    read_scene_gt_info, write_json, write_mesh_ply, write_models_info, write_scene_camera,
     write_scene_gt, write_scene_gt_info,
 };
 
@@ -102,6 +103,8 @@ pub struct SynthSummary {
     pub frames: usize,
     /// Frames rendered by this run (the others were already complete).
     pub rendered: usize,
+    /// Scenes found finished but with files missing or truncated, rendered again.
+    pub repaired: usize,
     /// Scenes in the split.
     pub scenes: usize,
     /// Wall-clock seconds.
@@ -162,37 +165,7 @@ fn split_options(objects: &[SynthObject], options: &SynthOptions) -> Value {
         "distractors": options.distractors,
         "noise": noise,
     });
-    serde_json::from_str(&value.to_string()).unwrap_or(value)
-}
-
-/// Refuses a split whose `synth_options.json` records other options than `expected`, naming
-/// the first option that differs. A split without the file (new, or from an older version) is
-/// accepted.
-fn check_split_options(path: &Path, expected: &Value) -> Result<(), FileError> {
-    if !path.exists() {
-        return Ok(());
-    }
-    let recorded = read_json(path)?;
-    let Some(recorded) = recorded.as_object() else {
-        return Err(FileError::new(path, "file", "not a JSON object"));
-    };
-    let Some(expected) = expected.as_object() else {
-        return Ok(());
-    };
-    for (key, value) in expected {
-        let found = recorded.get(key).unwrap_or(&Value::Null);
-        if found != value {
-            return Err(FileError::new(
-                path,
-                key,
-                format!(
-                    "the split was generated with {found}, this run asks for {value}; rerun with \
-                     the same options to complete it, or write to another folder"
-                ),
-            ));
-        }
-    }
-    Ok(())
+    as_recorded(value)
 }
 
 /// Refuses a split name that is not one plain folder name (`train`, `val`): no separators,
@@ -233,7 +206,11 @@ fn write_models(
     }
     let options_path = dataset.root.join(split).join(SYNTH_OPTIONS_FILE);
     let recorded_options = split_options(objects, options);
-    check_split_options(&options_path, &recorded_options)?;
+    check_recorded(
+        &options_path,
+        &recorded_options,
+        "rerun with the same options to complete the split, or write to another folder",
+    )?;
     let mut models = BTreeMap::new();
     for (i, object) in objects.iter().enumerate() {
         let obj_id = i as u32 + 1;
@@ -274,7 +251,7 @@ pub fn synthesize(
     let started = Instant::now();
     write_models(dataset, split, objects, options)?;
     let scenes_per_object = options.frames.div_ceil(options.frames_per_scene);
-    let mut rendered = 0;
+    let (mut rendered, mut repaired) = (0, 0);
     for (k, object) in objects.iter().enumerate() {
         let renderer = FrameRenderer::new(&object.mesh)?;
         let material = match options.variant {
@@ -295,8 +272,11 @@ pub fn synthesize(
             let count = options.frames_per_scene.min(options.frames - first);
             let scene = dataset.scene(split, scene_id);
             if scene.gt_info_path().exists() {
-                progress.inc(count as u64);
-                continue;
+                if scene_complete(&scene, count) {
+                    progress.inc(count as u64);
+                    continue;
+                }
+                repaired += 1;
             }
             let obj_id = k as u32 + 1;
             let frames: Vec<(u32, GtInstance, GtInfo)> = (0..count as u32)
@@ -337,8 +317,35 @@ pub fn synthesize(
     Ok(SynthSummary {
         frames: options.frames * objects.len(),
         rendered,
+        repaired,
         scenes: scenes_per_object * objects.len(),
         seconds: started.elapsed().as_secs_f64(),
+    })
+}
+
+/// Whether a finished `scene` (its `scene_gt_info.json` is written last) still holds every file
+/// of its `count` frames, whole: the three JSON files read and name every frame, and each
+/// frame's RGB, depth and masks end as whole PNGs ([`image_file_complete`]).
+fn scene_complete(scene: &SceneDir, count: usize) -> bool {
+    let (Ok(cameras), Ok(gt), Ok(info)) = (
+        read_scene_camera(&scene.camera_path()),
+        read_scene_gt(&scene.gt_path()),
+        read_scene_gt_info(&scene.gt_info_path()),
+    ) else {
+        return false;
+    };
+    (0..count as u32).all(|im_id| {
+        cameras.contains_key(&im_id)
+            && gt.contains_key(&im_id)
+            && info.contains_key(&im_id)
+            && [
+                scene.rgb_path(im_id),
+                scene.depth_path(im_id),
+                scene.mask_path(im_id, 0),
+                scene.mask_visib_path(im_id, 0),
+            ]
+            .iter()
+            .all(|path| image_file_complete(path))
     })
 }
 

@@ -48,6 +48,9 @@ pub fn run(args: &EvalArgs) -> Result<serde_json::Value> {
     let progress = bar(0, "images");
     let result = evaluate_run(&request, &progress)?;
     progress.finish_and_clear();
+    if let Some(warning) = &result.warning {
+        eprintln!("warning: {warning}");
+    }
     if let Some(path) = &args.out {
         write_json(path, &result)?;
     }

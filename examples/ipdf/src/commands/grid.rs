@@ -1,8 +1,9 @@
 //! `ipdf grid`: write an equivolumetric SO(3) grid as `.npy` and summarise it.
+use super::check_extension;
 use super::choice::choice;
 use std::path::PathBuf;
 
-use anyhow::{Result, bail};
+use anyhow::Result;
 use ipdf::npy::{RotationFormat, write_rotations};
 use serde_json::json;
 use so3_grid::Grid;
@@ -23,14 +24,13 @@ pub struct GridArgs {
 
 /// Runs `ipdf grid`; returns the JSON summary `{"level", "count", "cell_volume"}`.
 pub fn run(args: &GridArgs) -> Result<serde_json::Value> {
-    if let Some(out) = &args.out
-        && out.extension().is_none_or(|extension| extension != "npy")
-    {
-        bail!(
-            "--out {}: the grid is written as a NumPy array, so the file must end in .npy \
-             (the JSON summary goes to standard output with --json)",
-            out.display()
-        );
+    if let Some(out) = &args.out {
+        check_extension(
+            "--out",
+            out,
+            "npy",
+            "the grid (a NumPy array; the JSON summary goes to standard output)",
+        )?;
     }
     let grid = Grid::new(args.level)?;
     if let Some(out) = &args.out {

@@ -56,6 +56,10 @@ pub struct LabelArgs {
     /// Label only scenes k with k mod n = i (sorted order), for job arrays: `i/n`, 0 ≤ i < n.
     #[arg(long, default_value = "0/1")]
     pub shard: String,
+    /// Label the split's scenes (this shard's) again with these options, discarding their
+    /// labels; without it a split labelled with other options is refused.
+    #[arg(long)]
+    pub relabel: bool,
     /// Score the labels against scene_gt.json: JSON here, a markdown table beside it (.md).
     #[arg(long)]
     pub report: Option<PathBuf>,
@@ -69,6 +73,7 @@ pub fn run(args: &LabelArgs, seed: u64) -> Result<serde_json::Value> {
         mesh_scale: args.mesh_scale,
         obj_id: args.obj_id,
         shard: Shard::parse(&args.shard)?,
+        relabel: args.relabel,
     };
     let options = LabelOptions {
         labels: args.labels,

@@ -10,3 +10,24 @@ pub mod render;
 pub mod synth;
 pub mod train;
 pub mod viz;
+
+/// Refuses a `flag` path that does not end in `.extension` (any case): the file is written in
+/// that format whatever its name, so another ending would mislabel it. `what` says what is
+/// written.
+pub fn check_extension(
+    flag: &str,
+    path: &std::path::Path,
+    extension: &str,
+    what: &str,
+) -> anyhow::Result<()> {
+    let matches = path
+        .extension()
+        .is_some_and(|found| found.eq_ignore_ascii_case(extension));
+    if !matches {
+        anyhow::bail!(
+            "{flag} {}: {what} is written as .{extension}, so the file must end in .{extension}",
+            path.display()
+        );
+    }
+    Ok(())
+}

@@ -2,6 +2,7 @@
 //! (`.npy`, in the cell order of `ipdf grid`), and its most likely rotation (JSON).
 use std::path::PathBuf;
 
+use super::check_extension;
 use anyhow::Result;
 use bop_dataset::write_json;
 use ipdf::npy::write_f32;
@@ -34,6 +35,12 @@ pub struct PredictArgs {
 /// Runs `ipdf predict`; returns `{"argmax": {"quaternion_wxyz", "cam_R_m2c", "score"}, "level",
 /// "cells", "densest": [{"quaternion_wxyz", "probability"}, …]}`.
 pub fn run(args: &PredictArgs) -> Result<serde_json::Value> {
+    check_extension(
+        "--out",
+        &args.out,
+        "npy",
+        "the distribution (a NumPy array; the most likely rotation goes beside it as .json)",
+    )?;
     let model = ImplicitPdf::load(&args.checkpoint, default_device())?;
     let size = model.config().input_size as usize;
     let crop = crop_tensor(&crop_files(&args.rgb, &args.mask, size)?, size);

@@ -2,7 +2,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use bop_dataset::{FileError, write_atomically};
 use nalgebra::{Isometry3, Matrix4, Point3};
 use registration::{
@@ -76,6 +76,14 @@ pub fn run(args: &RegisterArgs, seed: u64) -> Result<serde_json::Value> {
     };
     let source = ipdf::cloud_file::read_cloud(&args.source, args.scale)?;
     let target = ipdf::cloud_file::read_cloud(&args.target, args.scale)?;
+    if !(args.voxel.is_finite() && args.voxel > 0.0) {
+        bail!(
+            "--voxel must be a positive number of metres, got {}",
+            args.voxel
+        );
+    }
+    check_units(&source, args.voxel, args.scale, &args.source)?;
+    check_units(&target, args.voxel, args.scale, &args.target)?;
     let options = PrepareOptions::for_voxel(args.voxel);
     let target_orientation = match args.target_normals {
         TargetNormals::Viewpoint => NormalOrientation::TowardsViewpoint(Point3::origin()),
@@ -142,6 +150,46 @@ fn check_overlap(alignment: &Alignment, max_correspondence_distance: f32) -> Res
         anyhow::bail!(
             "ICP ended with 0 correspondences (fitness 0) within {max_correspondence_distance} m; \
              the clouds do not overlap at the pose found (check --scale, --voxel and --initial)"
+        );
+    }
+    Ok(())
+}
+
+/// Voxels across a cloud beyond which (or below which) the voxel and the cloud's units
+/// disagree: a 10 m room at 5 mm voxels is 2,000 across, an object's view at least a few.
+const VOXELS_ACROSS: (f64, f64) = (3.0, 20_000.0);
+
+/// Refuses a cloud whose extent is not a sensible number of voxels, before normal estimation
+/// fails on it with a count of neighbours: the sign of a file in millimetres read as metres
+/// (or the reverse), naming `--scale` and `--voxel`.
+fn check_units(cloud: &PointCloud, voxel: f32, scale: f64, path: &Path) -> Result<()> {
+    let points = cloud.points();
+    let (mut low, mut high) = (points[0], points[0]);
+    for p in points {
+        low = low.inf(p);
+        high = high.sup(p);
+    }
+    let extent = f64::from((high - low).norm());
+    let across = extent / f64::from(voxel);
+    if across > VOXELS_ACROSS.1 {
+        bail!(
+            "{}: the cloud is {extent:.4} m across at --scale {scale}, {across:.0} voxels of \
+             --voxel {voxel} m: is it in millimetres? (--scale 0.001 reads it so)",
+            path.display()
+        );
+    }
+    if across < VOXELS_ACROSS.0 {
+        bail!(
+            "{}: the cloud is {extent:.6} m across at --scale {scale}, under {} voxels of \
+             --voxel {voxel} m: choose a smaller --voxel, or a larger --scale if it is not in \
+             {}",
+            path.display(),
+            VOXELS_ACROSS.0,
+            if scale == 1.0 {
+                "metres"
+            } else {
+                "the units --scale assumes"
+            }
         );
     }
     Ok(())

@@ -3,8 +3,11 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{Context, Result};
-use depth_render::{DepthNoise, Instance, Lighting, Material, Scene, Window, load_mesh};
+use super::check_extension;
+use anyhow::{Context, Result, bail};
+use depth_render::{
+    DepthNoise, Instance, Lighting, Material, Scene, Window, check_mesh_size, load_mesh,
+};
 use serde_json::json;
 
 /// Surface colouring of `--rgb`.
@@ -40,9 +43,10 @@ pub struct RenderArgs {
     /// Also write the object mask (8-bit PNG, 255 on the object).
     #[arg(long)]
     pub mask: Option<PathBuf>,
-    /// Millimetres per depth unit (BOP's `depth_scale`).
-    #[arg(long, default_value_t = 1.0)]
-    pub depth_scale: f64,
+    /// Millimetres per depth unit (BOP's `depth_scale`; default: the camera file's
+    /// `depth_scale`, else 1). A value that contradicts the camera file's is refused.
+    #[arg(long)]
+    pub depth_scale: Option<f64>,
     /// Colouring of the RGB image.
     #[arg(long, value_enum, default_value = "uniform")]
     pub texture: Texture,
@@ -52,20 +56,22 @@ pub struct RenderArgs {
 }
 
 /// Runs `ipdf render`; returns `{"width", "height", "pixels", "bbox", "depth_min_m",
-/// "depth_max_m", "render_ms"}` (`bbox` = `[u0, v0, u1, v1]` of the visible object, exclusive
+/// "depth_max_m", "depth_scale", "render_ms"}` (and a `"warning"` when nothing is in view) (`bbox` = `[u0, v0, u1, v1]` of the visible object, exclusive
 /// ends, or null).
 pub fn run(args: &RenderArgs, seed: u64) -> Result<serde_json::Value> {
-    if !(args.depth_scale.is_finite() && args.depth_scale > 0.0) {
-        anyhow::bail!("--depth-scale must be positive, got {}", args.depth_scale);
+    check_extension("--out", &args.out, "png", "the depth image (16-bit PNG)")?;
+    if let Some(path) = &args.rgb {
+        check_extension("--rgb", path, "png", "the colour image (PNG)")?;
+    }
+    if let Some(path) = &args.mask {
+        check_extension("--mask", path, "png", "the mask (8-bit PNG)")?;
     }
     let mesh = load_mesh(&args.mesh, args.mesh_scale)?;
-    let camera = bop_dataset::camera_from_json(
-        &bop_dataset::read_json(&args.camera)?,
-        &args.camera,
-        "",
-        None,
-    )?
-    .camera;
+    check_mesh_size(&mesh, &args.mesh, args.mesh_scale, "--mesh-scale")?;
+    let camera_json = bop_dataset::read_json(&args.camera)?;
+    let camera = bop_dataset::camera_from_json(&camera_json, &args.camera, "", None)?;
+    let depth_scale = depth_scale(args, &camera_json, camera.depth_scale)?;
+    let camera = camera.camera;
     let pose = bop_dataset::pose_from_json(&bop_dataset::read_json(&args.pose)?, &args.pose, "")?;
     let material = match (args.texture, mesh.colors()) {
         (Texture::Patches, _) => Material::Patches { cell: 0.02, seed },
@@ -85,7 +91,7 @@ pub fn run(args: &RenderArgs, seed: u64) -> Result<serde_json::Value> {
     } else {
         &rendering.depth
     };
-    bop_dataset::write_depth(&args.out, depth, width, height, args.depth_scale)?;
+    bop_dataset::write_depth(&args.out, depth, width, height, depth_scale)?;
     if let Some(path) = &args.rgb {
         let rgb = scene
             .shade(
@@ -103,20 +109,48 @@ pub fn run(args: &RenderArgs, seed: u64) -> Result<serde_json::Value> {
         bop_dataset::write_mask(path, &mask, width, height)?;
     }
     let bbox = bop_dataset::mask_box(&mask, width as usize);
-    let depths = rendering
-        .depth
+    // The depth written: with --noise, its noisy values and its dropped pixels.
+    let depths = depth
         .iter()
         .zip(&mask)
-        .filter(|(_, m)| **m)
+        .filter(|(d, m)| **m && **d > 0.0)
         .map(|(d, _)| f64::from(*d));
     let pixels = mask.iter().filter(|m| **m).count();
-    Ok(json!({
+    let mut result = json!({
         "width": width,
         "height": height,
         "pixels": pixels,
         "bbox": bbox,
         "depth_min_m": depths.clone().reduce(f64::min),
         "depth_max_m": depths.reduce(f64::max),
+        "depth_scale": depth_scale,
         "render_ms": render_ms,
-    }))
+    });
+    if pixels == 0 {
+        let warning = "the object is not in view: check the pose (cam_t_m2c is in millimetres, \
+                       along the camera's +z)";
+        eprintln!("warning: {warning}");
+        result["warning"] = json!(warning);
+    }
+    Ok(result)
+}
+
+/// Millimetres per depth unit: `--depth-scale`, else the camera file's `depth_scale`, else 1;
+/// refuses a flag that contradicts the file.
+fn depth_scale(args: &RenderArgs, camera_json: &serde_json::Value, in_file: f64) -> Result<f64> {
+    let file_has_it = camera_json.get("depth_scale").is_some();
+    let scale = match args.depth_scale {
+        Some(flag) if file_has_it && (flag - in_file).abs() > 1e-9 * in_file.abs() => bail!(
+            "--depth-scale {flag} contradicts depth_scale {in_file} of {}: leave the flag out \
+             to use the file's",
+            args.camera.display()
+        ),
+        Some(flag) => flag,
+        None if file_has_it => in_file,
+        None => 1.0,
+    };
+    if !(scale.is_finite() && scale > 0.0) {
+        bail!("--depth-scale must be positive, got {scale}");
+    }
+    Ok(scale)
 }

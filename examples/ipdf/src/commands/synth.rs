@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::{Result, bail};
 use bop_dataset::BopDataset;
 use bop_dataset::{camera_from_json, read_json};
-use depth_render::DepthNoise;
+use depth_render::{DepthNoise, check_mesh_size};
 use ipdf::progress::bar;
 use serde_json::json;
 use synth_data::{ObjectKind, SynthObject, SynthOptions, Variant, ViewRange, synthesize};
@@ -81,8 +81,12 @@ pub fn run(args: &SynthArgs, seed: u64) -> Result<serde_json::Value> {
     } else {
         args.mesh
             .iter()
-            .map(|path| SynthObject::from_mesh_file(path, args.mesh_scale))
-            .collect::<Result<Vec<_>, _>>()?
+            .map(|path| {
+                let object = SynthObject::from_mesh_file(path, args.mesh_scale)?;
+                check_mesh_size(&object.mesh, path, args.mesh_scale, "--mesh-scale")?;
+                Ok(object)
+            })
+            .collect::<Result<Vec<_>>>()?
     };
     let camera = match &args.camera {
         Some(path) => camera_from_json(&read_json(path)?, path, "", None)?,
@@ -111,6 +115,7 @@ pub fn run(args: &SynthArgs, seed: u64) -> Result<serde_json::Value> {
         "split": args.split,
         "frames": summary.frames,
         "rendered": summary.rendered,
+        "repaired": summary.repaired,
         "scenes": summary.scenes,
         "seconds": summary.seconds,
         "frames_per_s": summary.rendered as f64 / summary.seconds.max(1e-9),

@@ -3,8 +3,9 @@
 //! training curves.
 use std::path::PathBuf;
 
+use super::check_extension;
 use anyhow::{Result, bail};
-use bop_dataset::{read_models_info, read_scene_gt};
+use bop_dataset::{BopDataset, read_models_info, read_scene_gt};
 use ipdf::evaluation::distribution_figure;
 use ipdf::plots::{plot_training_curves, write_png};
 use ipdf::run_info::RunInfo;
@@ -52,6 +53,7 @@ pub struct VizArgs {
 
 /// Runs `ipdf viz`; returns `{"out", "width", "height"}`.
 pub fn run(args: &VizArgs) -> Result<serde_json::Value> {
+    check_extension("--out", &args.out, "png", "the figure (PNG)")?;
     let image = if let Some(log) = &args.train_log {
         let path = if log.is_dir() {
             log.join(ipdf_model::TRAIN_LOG)
@@ -76,24 +78,21 @@ pub fn run(args: &VizArgs) -> Result<serde_json::Value> {
                 let scene = dataset.scene(&args.split, scene_id);
                 let truth = if scene.gt_path().exists() {
                     let gt = read_scene_gt(&scene.gt_path())?;
-                    let Some(t) = gt.get(&im_id).and_then(|list| list.get(args.instance)) else {
+                    let instances = gt.get(&im_id).map(Vec::as_slice).unwrap_or_default();
+                    let found = instances.get(args.instance);
+                    let Some(t) = found.filter(|t| t.obj_id == info.obj_id) else {
+                        let what = match found {
+                            Some(t) => format!("instance {} is object {}", args.instance, t.obj_id),
+                            None => format!("has no instance {}", args.instance),
+                        };
                         bail!(
-                            "{}: image {im_id} has no instance {}",
+                            "{}: image {im_id} {what}, the model is for object {} ({}); {}",
                             scene.gt_path().display(),
-                            args.instance
+                            info.obj_id,
+                            info.object,
+                            where_object(&dataset, &args.split, info.obj_id)?
                         );
                     };
-                    if t.obj_id != info.obj_id {
-                        bail!(
-                            "{}: instance {} of image {im_id} is object {}, the model is for \
-                             object {} ({}); choose its instance with --instance",
-                            scene.gt_path().display(),
-                            args.instance,
-                            t.obj_id,
-                            info.obj_id,
-                            info.object
-                        );
-                    }
                     let models = read_models_info(&dataset.models_info_path())?;
                     models
                         .get(&t.obj_id)
@@ -116,4 +115,34 @@ pub fn run(args: &VizArgs) -> Result<serde_json::Value> {
     };
     write_png(&args.out, &image)?;
     Ok(json!({"out": args.out, "width": image.width(), "height": image.height()}))
+}
+
+/// Where object `obj_id` appears in `split`: its scenes and the flags of its first instance.
+fn where_object(dataset: &BopDataset, split: &str, obj_id: u32) -> Result<String> {
+    let mut scenes = Vec::new();
+    let mut first = None;
+    for scene_id in dataset.scene_ids(split)? {
+        let path = dataset.scene(split, scene_id).gt_path();
+        if !path.exists() {
+            continue;
+        }
+        let gt = read_scene_gt(&path)?;
+        let held = gt.iter().find_map(|(im_id, list)| {
+            let k = list.iter().position(|t| t.obj_id == obj_id)?;
+            Some((*im_id, k))
+        });
+        if let Some((im_id, k)) = held {
+            scenes.push(scene_id.to_string());
+            first.get_or_insert((scene_id, im_id, k));
+        }
+    }
+    Ok(match first {
+        Some((scene_id, im_id, k)) => format!(
+            "split {split} holds it in scene{} {} (e.g. --scene {scene_id} --image {im_id} \
+             --instance {k})",
+            if scenes.len() > 1 { "s" } else { "" },
+            scenes.join(", ")
+        ),
+        None => format!("no scene of split {split} holds it (choose the split with --split)"),
+    })
 }

@@ -155,6 +155,7 @@ fn label_datasets(
                 mesh_scale: 1e-3,
                 obj_id: None,
                 shard: Shard::ALL,
+                relabel: false,
             };
             let options = LabelOptions {
                 seed,
@@ -429,6 +430,10 @@ fn report_of(
         backbones: ScoreTable::new(),
         timing_s,
         config: plan.config(seed),
+        cpu_kernels: ipdf_model::kernel_settings()
+            .into_iter()
+            .map(|(name, value)| (name.to_string(), value.unwrap_or_else(|| "unset".into())))
+            .collect(),
     };
     for (run, result) in runs.iter().zip(scores) {
         let (table, row) = if run.encoder != plan.encoder {

@@ -47,6 +47,10 @@ pub struct Report {
     pub timing_s: BTreeMap<String, f64>,
     /// The run's settings.
     pub config: PipelineConfig,
+    /// libtorch's CPU kernel settings of the invocation that wrote the report
+    /// ([`ipdf_model::REPRODUCIBLE_CPU_KERNELS`]; `unset`: chosen per CPU).
+    #[serde(default)]
+    pub cpu_kernels: BTreeMap<String, String>,
 }
 
 /// One model's figures: `figures/{stem}.png` and `figures/{stem}_curves.png`.
@@ -156,6 +160,15 @@ impl Report {
         for (name, seconds) in &self.timing_s {
             text.push_str(&format!("| {name} | {seconds:.0} |\n"));
         }
+        let kernels: Vec<String> = self
+            .cpu_kernels
+            .iter()
+            .map(|(name, value)| format!("`{name}={value}`"))
+            .collect();
+        text.push_str(&format!(
+            "\nlibtorch's CPU kernels: {} (see `ipdf_model::REPRODUCIBLE_CPU_KERNELS`).\n",
+            kernels.join(", ")
+        ));
         text
     }
 
