@@ -17,7 +17,7 @@ struct Cli {
     /// Random seed (every command is deterministic given it).
     #[arg(long, global = true, default_value_t = 0)]
     seed: u64,
-    /// Worker threads (0: one per core; at most 1024).
+    /// Worker threads, rayon's and libtorch's (0: one per core; at most 1024).
     #[arg(
         long,
         global = true,
@@ -152,6 +152,11 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
+    if cli.threads > 0 {
+        // libtorch's own threads too, so that `--threads` fixes every thread count that can
+        // change a result (see README, "Determinism").
+        tch::set_num_threads(cli.threads as i32);
+    }
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(cli.threads)
         .build();

@@ -1,0 +1,147 @@
+//! The README's command blocks, run in order as a newcomer would, on a miniature scale: the
+//! section "The `ipdf` command line" of README.md is the program's contract, and this test keeps
+//! the two from drifting apart.
+//!
+//! Each block is split into commands (comments dropped, `\` continuations joined) and run with
+//! `bash` in a fresh folder where `target/release/ipdf` is this build's binary and `tless` a
+//! copy of the T-LESS layout fixture. Only sizes are shrunk ([`MINIATURE`]); every flag, path
+//! and file the README names is used as written.
+use std::path::Path;
+use std::process::Command;
+
+/// Flag values replaced, so that the walk takes seconds: (flag, value).
+const MINIATURE: [(&str, &str); 5] = [
+    ("--frames", "2"),
+    ("--epochs", "1"),
+    ("--steps-per-epoch", "1"),
+    ("--batch-size", "2"),
+    ("--input-size", "32"),
+];
+
+/// The commands of the README's `sh` blocks between `start` and the next `## ` heading.
+fn readme_commands(readme: &str, start: &str) -> Vec<String> {
+    let begin = readme.find(start).expect("the section exists");
+    let section = &readme[begin..];
+    let end = section[start.len()..]
+        .find("\n## ")
+        .map_or(section.len(), |at| at + start.len());
+    let mut commands = Vec::new();
+    let mut in_block = false;
+    let mut pending = String::new();
+    for line in section[..end].lines() {
+        if line.starts_with("```") {
+            in_block = line == "```sh";
+            continue;
+        }
+        let line = line.trim();
+        if !in_block || line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        match line.strip_suffix('\\') {
+            Some(part) => pending.push_str(part),
+            None => {
+                pending.push_str(line);
+                commands.push(std::mem::take(&mut pending));
+            }
+        }
+    }
+    commands
+}
+
+/// `command` with the values of [`MINIATURE`]'s flags replaced.
+fn miniature(command: &str) -> String {
+    let words: Vec<&str> = command.split_whitespace().collect();
+    let mut out: Vec<&str> = Vec::with_capacity(words.len());
+    let mut k = 0;
+    while k < words.len() {
+        out.push(words[k]);
+        if let Some((_, value)) = MINIATURE.iter().find(|(flag, _)| *flag == words[k])
+            && k + 1 < words.len()
+        {
+            out.push(value);
+            k += 1;
+        }
+        k += 1;
+    }
+    out.join(" ")
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap() {
+        let entry = entry.unwrap();
+        let target = to.join(entry.file_name());
+        if entry.path().is_dir() {
+            copy_dir(&entry.path(), &target);
+        } else {
+            std::fs::copy(entry.path(), target).unwrap();
+        }
+    }
+}
+
+#[test]
+fn the_readme_commands_run_in_order() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
+    let commands = readme_commands(&readme, "## The `ipdf` command line");
+    assert!(commands.len() >= 15, "{commands:#?}");
+
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir_all(dir.path().join("target/release")).unwrap();
+    std::os::unix::fs::symlink(
+        env!("CARGO_BIN_EXE_ipdf"),
+        dir.path().join("target/release/ipdf"),
+    )
+    .unwrap();
+    copy_dir(
+        &root.join("examples/bop-dataset/tests/data/tless_layout"),
+        &dir.path().join("tless"),
+    );
+    for command in &commands {
+        let small = miniature(command);
+        let out = Command::new("bash")
+            .args(["-c", &small])
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "README command failed: {command}\nrun as: {small}\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    // What the README says the commands write.
+    for file in [
+        "grid.npy",
+        "grid_matrix.npy",
+        "data/uniform/labels.json",
+        "data/uniform/labels.md",
+        "depth.png",
+        "rgb.png",
+        "mask.png",
+        "result.json",
+        "runs/box_pseudo/train_log.csv",
+        "eval.json",
+        "pred.npy",
+        "pred.json",
+        "box.png",
+        "box_curves.png",
+        "tless_obj1.json",
+    ] {
+        assert!(dir.path().join(file).is_file(), "{file} was not written");
+    }
+}
+
+#[test]
+fn the_walk_shrinks_sizes_only() {
+    let command = "ipdf train --frames 1000 --epochs 50 --object box --batch-size 64";
+    assert_eq!(
+        miniature(command),
+        "ipdf train --frames 2 --epochs 1 --object box --batch-size 2"
+    );
+    let readme = "## The `ipdf` command line\n```sh\n# a comment\na --x \\\n    --y\n```\ntext\n```rust\nb\n```\n## Next\n```sh\nc\n```\n";
+    assert_eq!(
+        readme_commands(readme, "## The `ipdf` command line"),
+        ["a --x --y"]
+    );
+}
