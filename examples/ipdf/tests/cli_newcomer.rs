@@ -51,6 +51,14 @@ fn rescaled_ply(ply: &Path, factor: f32, out: &Path) {
     std::fs::write(out, text).unwrap();
 }
 
+/// `dir/pose.json`: rotation `rotation` (row-major), `z_mm` straight ahead of the camera.
+fn pose_file(dir: &Path, rotation: &str, z_mm: u32) -> std::path::PathBuf {
+    let path = dir.join("pose.json");
+    let text = format!(r#"{{"cam_R_m2c": {rotation}, "cam_t_m2c": [0, 0, {z_mm}]}}"#);
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
 /// A two-object dataset of 2 frames each, its can's mesh rescaled to metres beside it.
 fn dataset(dir: &Path) -> std::path::PathBuf {
     let data = dir.join("data");
@@ -122,12 +130,7 @@ fn a_mesh_or_cloud_at_the_wrong_scale_is_refused_naming_the_flag_that_fixes_it()
     let dir = tempfile::tempdir().unwrap();
     let data = dataset(dir.path());
     let metres = dir.path().join("can_m.ply");
-    let pose = dir.path().join("pose.json");
-    std::fs::write(
-        &pose,
-        r#"{"cam_R_m2c": [1, 0, 0, 0, 1, 0, 0, 0, 1], "cam_t_m2c": [0, 0, 700]}"#,
-    )
-    .unwrap();
+    let pose = pose_file(dir.path(), "[1, 0, 0, 0, 1, 0, 0, 0, 1]", 700);
     let camera = data.join("camera.json");
     let depth = dir.path().join("depth.png");
     let render = |mesh: &Path, extra: &[&str]| {
@@ -180,12 +183,7 @@ fn outputs_named_for_another_format_are_refused_before_anything_is_written() {
     let dir = tempfile::tempdir().unwrap();
     let data = dataset(dir.path());
     let mesh = data.join("models/obj_000001.ply");
-    let pose = dir.path().join("pose.json");
-    std::fs::write(
-        &pose,
-        r#"{"cam_R_m2c": [1, 0, 0, 0, 1, 0, 0, 0, 1], "cam_t_m2c": [0, 0, 700]}"#,
-    )
-    .unwrap();
+    let pose = pose_file(dir.path(), "[1, 0, 0, 0, 1, 0, 0, 0, 1]", 700);
     let camera = data.join("camera.json");
     let jpg = dir.path().join("depth.jpg");
     assert_fails(
@@ -255,12 +253,7 @@ fn render_reports_the_depth_it_writes_and_honours_the_camera_files_depth_scale()
     let dir = tempfile::tempdir().unwrap();
     let data = dataset(dir.path());
     let mesh = data.join("models/obj_000002.ply");
-    let pose = dir.path().join("pose.json");
-    std::fs::write(
-        &pose,
-        r#"{"cam_R_m2c": [1, 0, 0, 0, 0.8, -0.6, 0, 0.6, 0.8], "cam_t_m2c": [0, 0, 900]}"#,
-    )
-    .unwrap();
+    let pose = pose_file(dir.path(), "[1, 0, 0, 0, 0.8, -0.6, 0, 0.6, 0.8]", 900);
     let camera = dir.path().join("camera.json");
     std::fs::write(
         &camera,

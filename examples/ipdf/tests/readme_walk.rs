@@ -6,8 +6,12 @@
 //! `bash` in a fresh folder where `target/release/ipdf` is this build's binary and `tless` a
 //! copy of the T-LESS layout fixture. Only sizes are shrunk ([`MINIATURE`]); every flag, path
 //! and file the README names is used as written.
+mod common;
+
 use std::path::Path;
 use std::process::Command;
+
+use common::copy_dir;
 
 /// Flag values replaced, so that the walk takes seconds: (flag, value).
 const MINIATURE: [(&str, &str); 5] = [
@@ -64,19 +68,6 @@ fn miniature(command: &str) -> String {
         k += 1;
     }
     out.join(" ")
-}
-
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for entry in std::fs::read_dir(from).unwrap() {
-        let entry = entry.unwrap();
-        let target = to.join(entry.file_name());
-        if entry.path().is_dir() {
-            copy_dir(&entry.path(), &target);
-        } else {
-            std::fs::copy(entry.path(), target).unwrap();
-        }
-    }
 }
 
 #[test]

@@ -6,7 +6,7 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use bop_dataset::{BopDataset, read_models_info, read_pseudo_gt, read_scene_gt};
-use common::{ipdf_json, s};
+use common::{copy_dir, ipdf_json, s};
 use ipdf::training_data::{ExampleOptions, LabelSource, load_examples};
 
 fn fixture() -> PathBuf {
@@ -102,17 +102,4 @@ fn labelling_without_the_models_folder_stops_before_writing() {
             .join("test_primesense/000001/scene_pseudo_gt.json")
             .exists()
     );
-}
-
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for entry in std::fs::read_dir(from).unwrap() {
-        let entry = entry.unwrap();
-        let target = to.join(entry.file_name());
-        if entry.path().is_dir() {
-            copy_dir(&entry.path(), &target);
-        } else {
-            std::fs::copy(entry.path(), target).unwrap();
-        }
-    }
 }

@@ -32,7 +32,8 @@ pub enum TargetNormals {
 /// Arguments of `ipdf register`.
 #[derive(Debug, clap::Args)]
 pub struct RegisterArgs {
-    /// Source cloud (PLY: vertices, optional `nx ny nz`); a mesh reads as its vertices.
+    /// Source cloud (PLY or OBJ: vertices, optional `nx ny nz`); a mesh reads as 20,000 points
+    /// sampled on its surface.
     #[arg(long)]
     pub source: PathBuf,
     /// Target cloud (PLY), e.g. an unprojected depth view in its camera frame.
