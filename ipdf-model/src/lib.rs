@@ -75,7 +75,7 @@ pub use kernels::{REPRODUCIBLE_CPU_KERNELS, kernel_settings, missing_kernel_sett
 pub use loss::{LabelLoss, QuerySampling, label_set_from_matrices, set_nll};
 pub use model::{ImplicitPdf, ModelConfig};
 pub use optim::LearningRateSchedule;
-pub use predict::{Argmax, ArgmaxOptions, Precision, Predictor};
+pub use predict::{Argmax, ArgmaxOptions, Precision, Predictor, UNDER_RESOLUTION_LIMIT};
 pub use pretrained::load_backbone;
 pub use refine::{CellMasses, RefineOptions, refine};
 pub use train::{StepReport, TrainOptions, Trainer};

@@ -6,6 +6,7 @@ mod common;
 use ipdf_model::{
     ArgmaxOptions, Augmentation, ImplicitPdf, LabelLoss, LabelledImages, LearningRateSchedule,
     ModelConfig, Precision, Predictor, QuerySampling, RefineOptions, TrainOptions, Trainer,
+    UNDER_RESOLUTION_LIMIT,
 };
 use metrics::{
     Distribution, GridCell, RECALL_THRESHOLD, llh, maad, nearest_distances, recall_maad,
@@ -88,6 +89,22 @@ fn distribution(masses: ipdf_model::CellMasses) -> Distribution {
         .map(|&(level, index)| GridCell { level, index })
         .collect();
     Distribution::from_cells(cells, masses.masses).unwrap()
+}
+
+/// [`Predictor::under_resolution`] of `model` on the test images, mean over them, with the
+/// distribution refined to `level`.
+fn under_resolution(model: &ImplicitPdf, test: &common::CubeRenders, level: u8) -> f64 {
+    let mut predictor = Predictor::new(model);
+    let values: Vec<f64> = (0..test.poses.len())
+        .map(|i| {
+            let image = test.images.get(i as i64);
+            let masses = predictor
+                .hierarchical(&image, &RefineOptions::to_level(level))
+                .unwrap();
+            predictor.under_resolution(&image, &masses).unwrap()
+        })
+        .collect();
+    values.iter().sum::<f64>() / values.len() as f64
 }
 
 fn hierarchy_against_dense(model: &ImplicitPdf, test: &common::CubeRenders) -> HierarchyGaps {
@@ -206,6 +223,15 @@ fn symmetry_sets_are_learned_from_set_labels_and_not_from_single_labels() {
             assert!(gaps.argmax_error < 10.0, "{name}: {gaps:?}");
         }
     }
+    // The analytic model's peaks hide inside level-2 cells (see above): the check that tells
+    // `ipdf eval` a level is too coarse sees it there and much less at level 4.
+    let coarse_and_fine = [2, 4].map(|level| under_resolution(&analytic_model, &test_set, level));
+    println!("analytic: under-resolution at levels 2 and 4: {coarse_and_fine:?}");
+    assert!(
+        coarse_and_fine[0] > UNDER_RESOLUTION_LIMIT
+            && coarse_and_fine[1] < 0.5 * coarse_and_fine[0],
+        "{coarse_and_fine:?}"
+    );
     let uniform_llh = -std::f64::consts::PI.powi(2).ln();
     assert!(
         analytic.llh > uniform_llh + 3.0,

@@ -6,7 +6,9 @@
 use std::path::{Path, PathBuf};
 
 use indicatif::ProgressBar;
-use ipdf_model::{CellMasses, ImplicitPdf, Predictor, RefineOptions, default_device};
+use ipdf_model::{
+    CellMasses, ImplicitPdf, Predictor, RefineOptions, UNDER_RESOLUTION_LIMIT, default_device,
+};
 use metrics::{Distribution, GridCell, RECALL_THRESHOLD, maad, recall_maad};
 use serde::{Deserialize, Serialize};
 use so3_grid::Grid;
@@ -29,70 +31,9 @@ pub struct Scores {
     pub recall_maad_deg: f64,
     /// The most network queries one crop took.
     pub queries_per_image: usize,
-    /// How far the grid is from resolving the model's peaks ([`under_resolution`]), the
-    /// mean over crops.
+    /// How far the grid is from resolving the model's peaks
+    /// ([`Predictor::under_resolution`]), the mean over crops.
     pub under_resolution: f64,
-}
-
-/// The [`Scores::under_resolution`] above which the grid's level is reported too coarse: the
-/// heaviest cells' mass changes by a factor of 1.5 or more when they are split into their
-/// children. The quick pipeline's models give 0.01–0.1 at level 4 (their scores move by less
-/// than 0.05 in LLH and 0.5° in Recall MAAD from level 4 to 5), and more than 1 at level 2.
-pub const UNDER_RESOLUTION_LIMIT: f64 = 0.405;
-
-/// How far the finest cells of `masses` are from resolving the density of `crop`'s
-/// distribution: over the cells that hold its first half of the mass (heaviest first, at most
-/// 16), the mass-weighted mean of `|ln(m₈ / m)|`, `m` the cell's mass from the density at its
-/// centre and `m₈` the mean of the densities at its 8 children's centres. 0 where the density
-/// is flat across each cell; large where a peak narrower than a cell sits off its centre,
-/// which leaves the normaliser, and with it LLH, MAAD and Recall MAAD, wrong.
-pub fn under_resolution(
-    predictor: &mut Predictor,
-    crop: &tch::Tensor,
-    masses: &CellMasses,
-) -> Result<f64, PipelineError> {
-    let Some(level) = masses.cells.iter().map(|&(level, _)| level).max() else {
-        return Ok(0.0);
-    };
-    let mut order: Vec<usize> = (0..masses.cells.len())
-        .filter(|&i| masses.cells[i].0 == level)
-        .collect();
-    order.sort_by(|&a, &b| masses.masses[b].total_cmp(&masses.masses[a]));
-    let (mut heavy, mut held) = (Vec::new(), 0.0);
-    for i in order.into_iter().take(16) {
-        heavy.push(i);
-        held += masses.masses[i];
-        if held >= 0.5 {
-            break;
-        }
-    }
-    // Each heavy cell's centre, then its 8 children's.
-    let rotations = (|| {
-        let (grid, finer) = (Grid::new(level)?, Grid::new(level + 1)?);
-        let mut rotations = Vec::with_capacity(heavy.len() * 9);
-        for &i in &heavy {
-            let index = masses.cells[i].1;
-            rotations.push(grid.rotation(index)?);
-            for child in grid.children(index)? {
-                rotations.push(finer.rotation(child)?);
-            }
-        }
-        Ok::<_, so3_grid::GridError>(rotations)
-    })()
-    .map_err(|e| PipelineError::option("level", e.to_string()))?;
-    let log_density = predictor.log_densities(crop, &rotations, masses)?;
-    let (mut sum, mut weights) = (0.0, 0.0);
-    for (k, &i) in heavy.iter().enumerate() {
-        let values = &log_density[9 * k..9 * k + 9];
-        let mean_children = values[1..]
-            .iter()
-            .map(|f| (f - values[0]).exp())
-            .sum::<f64>()
-            / 8.0;
-        sum += masses.masses[i] * mean_children.ln().abs();
-        weights += masses.masses[i];
-    }
-    Ok(if weights > 0.0 { sum / weights } else { 0.0 })
 }
 
 /// Scores `model` on every crop of `examples`, its distribution evaluated on the cells
@@ -124,7 +65,7 @@ pub fn evaluate(
         let distribution = cell_distribution(&masses)?;
         sum_maad += maad(&distribution, truth)?;
         sum_recall += recall_maad(&distribution, truth, RECALL_THRESHOLD)?;
-        sum_under += under_resolution(&mut predictor, &crop, &masses)?;
+        sum_under += predictor.under_resolution(&crop, &masses)?;
         queries = queries.max(masses.queries);
         progress.inc(1);
     }
@@ -181,8 +122,8 @@ pub struct EvalResult {
     pub maad_deg: f64,
     /// Recall mean absolute angular deviation (degrees).
     pub recall_maad_deg: f64,
-    /// How far the grid is from resolving the model's peaks ([`under_resolution`], mean over
-    /// the crops).
+    /// How far the grid is from resolving the model's peaks
+    /// ([`Predictor::under_resolution`], mean over the crops).
     #[serde(default)]
     pub under_resolution: f64,
     /// Why the scores may mislead: a level too coarse for the model's sharpness.
@@ -247,7 +188,7 @@ pub fn evaluate_run(
                 request.level,
                 scores.under_resolution.exp(),
                 scores.under_resolution,
-                (request.level + 1).max(4)
+                request.level + 1
             )
         }),
     })

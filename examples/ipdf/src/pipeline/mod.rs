@@ -448,6 +448,7 @@ fn report_of(
             maad_deg: result.maad_deg,
             recall_maad_deg: result.recall_maad_deg,
             images: result.images,
+            under_resolution: result.under_resolution,
         };
         table
             .entry(row.to_string())

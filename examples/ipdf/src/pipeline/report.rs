@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 
 use super::config::PipelineConfig;
 use crate::training_data::LabelSource;
+use ipdf_model::UNDER_RESOLUTION_LIMIT;
 
 /// The scores of one model.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -18,6 +19,10 @@ pub struct ModelScores {
     pub recall_maad_deg: f64,
     /// Validation crops scored.
     pub images: usize,
+    /// How far the evaluation grid is from resolving the model's peaks
+    /// ([`ipdf_model::Predictor::under_resolution`]).
+    #[serde(default)]
+    pub under_resolution: f64,
 }
 
 /// Models by row (label type or encoder), then by object.
@@ -134,6 +139,7 @@ impl Report {
             recall_min_log_density(RECALL_THRESHOLD),
             (recall_min_log_density(RECALL_THRESHOLD) + std::f64::consts::PI.powi(2).ln()).exp()
         ));
+        self.resolution_note(&mut text);
         if !self.models_occlusion.is_empty() {
             text.push_str("\n## With occlusion augmentation\n\n");
             model_table(&mut text, &self.models_occlusion, &LABELS);
@@ -170,6 +176,43 @@ impl Report {
             kernels.join(", ")
         ));
         text
+    }
+
+    /// Whether the evaluation grid resolved every model's peaks, naming the models it did not.
+    fn resolution_note(&self, text: &mut String) {
+        let mut entries: Vec<(String, f64)> =
+            [&self.models, &self.models_occlusion, &self.backbones]
+                .into_iter()
+                .flat_map(|table| {
+                    table.iter().flat_map(|(row, objects)| {
+                        objects.iter().map(move |(object, scores)| {
+                            (format!("{object} {row}"), scores.under_resolution)
+                        })
+                    })
+                })
+                .collect();
+        entries.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let Some((worst, value)) = entries.first() else {
+            return;
+        };
+        let unresolved: Vec<&str> = entries
+            .iter()
+            .filter(|(_, u)| *u > UNDER_RESOLUTION_LIMIT)
+            .map(|(name, _)| name.as_str())
+            .collect();
+        text.push_str(&format!(
+            "\nUnder-resolution (how much splitting the heaviest cells changes their mass, as \
+             |ln| of the factor; above {UNDER_RESOLUTION_LIMIT} the scores mislead): at most \
+             {value:.2} ({worst}).{}\n",
+            if unresolved.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    " Not resolved at this level, so unreliable: {}.",
+                    unresolved.join(", ")
+                )
+            }
+        ));
     }
 
     /// The pseudo-label accuracy table.

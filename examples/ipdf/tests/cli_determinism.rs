@@ -1,0 +1,77 @@
+//! Determinism across thread counts through the real binary: `ipdf` pins libtorch's CPU
+//! kernels (`ipdf_model::REPRODUCIBLE_CPU_KERNELS`), with which a small CNN trains to the same
+//! bits on one thread as on two, and labelling never depended on threads.
+mod common;
+
+use common::{ipdf_json, s};
+
+#[test]
+fn training_and_labelling_give_the_same_bits_on_one_and_two_threads() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    ipdf_json(&[
+        "synth",
+        "--out",
+        s(&data),
+        "--objects",
+        "box",
+        "--frames",
+        "6",
+    ]);
+    let mut labels = Vec::new();
+    for threads in ["1", "2"] {
+        let copy = dir.path().join(format!("data_{threads}"));
+        common::copy_dir(&data, &copy);
+        ipdf_json(&["label", "--dataset", s(&copy), "--threads", threads]);
+        labels.push(std::fs::read(copy.join("train/000000/scene_pseudo_gt.json")).unwrap());
+    }
+    assert_eq!(labels[0], labels[1], "labels on 1 and 2 threads");
+    let data = dir.path().join("data_1");
+    let mut weights = Vec::new();
+    for threads in ["1", "2"] {
+        let run = dir.path().join(format!("run_{threads}"));
+        let result = ipdf_json(&[
+            "train",
+            "--dataset",
+            s(&data),
+            "--labels",
+            "pseudo",
+            "--out",
+            s(&run),
+            "--val-split",
+            "none",
+            "--encoder",
+            "small-cnn",
+            "--input-size",
+            "32",
+            "--head",
+            "32,32",
+            "--query-level",
+            "1",
+            "--epochs",
+            "2",
+            "--steps-per-epoch",
+            "3",
+            "--batch-size",
+            "4",
+            "--learning-rate",
+            "4e-3",
+            "--threads",
+            threads,
+        ]);
+        let checkpoint = std::fs::read_dir(&run)
+            .unwrap()
+            .map(|entry| entry.unwrap().path())
+            .find(|path| {
+                let name = path.file_name().unwrap().to_string_lossy();
+                name.starts_with("model-") && name.ends_with(".safetensors")
+            })
+            .unwrap();
+        weights.push((std::fs::read(checkpoint).unwrap(), result["loss"].clone()));
+    }
+    assert_eq!(weights[0].1, weights[1].1, "final loss");
+    assert!(
+        weights[0].0 == weights[1].0,
+        "the weights differ between 1 and 2 threads"
+    );
+}
