@@ -67,12 +67,13 @@ pub struct LabelArgs {
 
 /// Runs `ipdf label`; returns the run's counts and, with `--report`, the scores.
 pub fn run(args: &LabelArgs, seed: u64) -> Result<serde_json::Value> {
+    let shard = Shard::parse(&args.shard)?;
     let dataset = BopDataset::open(&args.dataset, &args.models_dir)?;
     let dataset_options = DatasetOptions {
         split: args.split.clone(),
         mesh_scale: args.mesh_scale,
         obj_id: args.obj_id,
-        shard: Shard::parse(&args.shard)?,
+        shard,
         relabel: args.relabel,
     };
     let options = LabelOptions {
