@@ -229,12 +229,17 @@ fn bad_flags_and_missing_inputs_fail_with_one_line() {
         &["label", "--dataset", s(dir.path()), "--shard", "2/2"],
         "shard",
     );
+    // Without a models folder, that is named first (with the folders that could be it).
     assert_fails(
         &["label", "--dataset", s(dir.path()), "--split", "test"],
-        "test",
+        "models: folder: missing",
+    );
+    std::fs::create_dir_all(dir.path().join("models")).unwrap();
+    assert_fails(
+        &["label", "--dataset", s(dir.path()), "--split", "test"],
+        "split \"test\" does not exist",
     );
     // A split whose scene folders are not named as BOP names them.
-    std::fs::create_dir_all(dir.path().join("models")).unwrap();
     std::fs::create_dir_all(dir.path().join("odd/1")).unwrap();
     assert_fails(
         &["label", "--dataset", s(dir.path()), "--split", "odd"],
