@@ -155,7 +155,7 @@ fn bad_inputs_fail_with_one_line_naming_the_cause() {
 
     let mut args = register_args(&clouds.source, &clouds.target);
     args.push("--voxel=0");
-    assert!(error_of(&ipdf(&args)).contains("voxel_size"));
+    assert!(error_of(&ipdf(&args)).contains("--voxel must be a positive number"));
     let mut args = register_args(&clouds.source, &clouds.target);
     args.push("--scale=0");
     assert!(error_of(&ipdf(&args)).contains("--scale"));

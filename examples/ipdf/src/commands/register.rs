@@ -165,7 +165,11 @@ const VOXELS_ACROSS: (f64, f64) = (3.0, 20_000.0);
 /// (or the reverse), naming `--scale` and `--voxel`.
 fn check_units(cloud: &PointCloud, voxel: f32, scale: f64, path: &Path) -> Result<()> {
     let points = cloud.points();
-    let (mut low, mut high) = (points[0], points[0]);
+    let Some(&first) = points.first() else {
+        // Registration names an empty cloud itself.
+        return Ok(());
+    };
+    let (mut low, mut high) = (first, first);
     for p in points {
         low = low.inf(p);
         high = high.sup(p);
