@@ -59,6 +59,12 @@ fn pose_file(dir: &Path, rotation: &str, z_mm: u32) -> std::path::PathBuf {
     path
 }
 
+/// [`assert_fails`] for owned arguments.
+fn refuse(args: Vec<String>, expected: &str) {
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    assert_fails(&args, expected);
+}
+
 /// A two-object dataset of 2 frames each, its can's mesh rescaled to metres beside it.
 fn dataset(dir: &Path) -> std::path::PathBuf {
     let data = dir.join("data");
@@ -139,10 +145,6 @@ fn a_mesh_or_cloud_at_the_wrong_scale_is_refused_naming_the_flag_that_fixes_it()
         args.extend_from_slice(extra);
         args.iter().map(|a| a.to_string()).collect::<Vec<_>>()
     };
-    let refuse = |args: Vec<String>, expected: &str| {
-        let args: Vec<&str> = args.iter().map(String::as_str).collect();
-        assert_fails(&args, expected);
-    };
     refuse(render(&metres, &[]), "--mesh-scale 1 makes it");
     assert!(!depth.exists());
     let fixed = ipdf_json(
@@ -185,39 +187,17 @@ fn outputs_named_for_another_format_are_refused_before_anything_is_written() {
     let mesh = data.join("models/obj_000001.ply");
     let pose = pose_file(dir.path(), "[1, 0, 0, 0, 1, 0, 0, 0, 1]", 700);
     let camera = data.join("camera.json");
+    let render = |outputs: &[&str]| {
+        let mut args = vec!["render", "--mesh", s(&mesh), "--camera", s(&camera)];
+        args.extend(["--pose", s(&pose)]);
+        args.extend_from_slice(outputs);
+        args.iter().map(|a| a.to_string()).collect::<Vec<_>>()
+    };
     let jpg = dir.path().join("depth.jpg");
-    assert_fails(
-        &[
-            "render",
-            "--mesh",
-            s(&mesh),
-            "--camera",
-            s(&camera),
-            "--pose",
-            s(&pose),
-            "--out",
-            s(&jpg),
-        ],
-        "must end in .png",
-    );
+    refuse(render(&["--out", s(&jpg)]), "must end in .png");
     let png = dir.path().join("depth.png");
     let rgb = dir.path().join("rgb.jpg");
-    assert_fails(
-        &[
-            "render",
-            "--mesh",
-            s(&mesh),
-            "--camera",
-            s(&camera),
-            "--pose",
-            s(&pose),
-            "--out",
-            s(&png),
-            "--rgb",
-            s(&rgb),
-        ],
-        "--rgb",
-    );
+    refuse(render(&["--out", s(&png), "--rgb", s(&rgb)]), "--rgb");
     let json = dir.path().join("p.json");
     assert_fails(
         &[
