@@ -11,24 +11,48 @@ use nalgebra::{Point3, Vector3};
 use ply_rs_bw::parser::Parser;
 use ply_rs_bw::ply::{DefaultElement, Property};
 
+use crate::mesh_repair::{MeshParts, MeshRepairs, repair};
 use crate::{RenderError, TriangleMesh};
+
+/// A mesh read from a file, and what loading repaired in it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoadedMesh {
+    /// The mesh, repaired.
+    pub mesh: TriangleMesh,
+    /// What was repaired (see [`MeshRepairs`]).
+    pub repairs: MeshRepairs,
+}
 
 /// Loads a `.ply` or `.obj` mesh and multiplies its coordinates by `scale`.
 ///
-/// Polygons are triangulated as fans. Every failure names the file and the element or field:
-/// unreadable or truncated files, missing `x`/`y`/`z` or face indices, non-finite coordinates or
-/// attributes, indices out of range, zero-area faces.
-pub fn load_mesh(path: &Path, scale: f64) -> Result<TriangleMesh, RenderError> {
+/// Polygons are triangulated as fans. What scanned and exported meshes commonly get slightly
+/// wrong is repaired and counted in [`LoadedMesh::repairs`]: zero-area triangles and vertices
+/// no triangle uses are dropped, normals of zero length (or not finite) are recomputed. What
+/// cannot be used is refused, naming the file and the element or field: unreadable or truncated
+/// files, missing `x`/`y`/`z` or faces, non-finite coordinates or colours, indices out of range,
+/// no triangle left after the repairs.
+pub fn load_mesh(path: &Path, scale: f64) -> Result<LoadedMesh, RenderError> {
     check_scale(path, scale)?;
     let raw = read_raw(path)?;
     let Some(polygons) = &raw.polygons else {
         return Err(file_error(path, "face", "missing".into()));
     };
-    let positions = raw
+    let positions: Vec<Point3<f32>> = raw
         .positions
         .iter()
         .map(|p| (p * scale).cast::<f32>())
         .collect();
+    if let Some(vertex) = positions
+        .iter()
+        .position(|p| p.iter().any(|c| !c.is_finite()))
+    {
+        let error = RenderError::NonFiniteVertex { vertex };
+        return Err(file_error(
+            path,
+            &format!("vertex[{vertex}]"),
+            error.to_string(),
+        ));
+    }
     let mut triangles = Vec::new();
     let mut face_of_triangle = Vec::new();
     for (face, polygon) in polygons.iter().enumerate() {
@@ -39,29 +63,54 @@ pub fn load_mesh(path: &Path, scale: f64) -> Result<TriangleMesh, RenderError> {
                 format!("has {} vertices", polygon.len()),
             ));
         }
+        if let Some(&index) = polygon.iter().find(|&&i| i as usize >= positions.len()) {
+            return Err(file_error(
+                path,
+                &format!("face[{face}]"),
+                format!(
+                    "refers to vertex {index}, but there are {} vertices",
+                    positions.len()
+                ),
+            ));
+        }
         for k in 1..polygon.len() - 1 {
             triangles.push([polygon[0], polygon[k], polygon[k + 1]]);
             face_of_triangle.push(face);
         }
     }
+    let (parts, repairs) = repair(MeshParts {
+        positions,
+        triangles,
+        face_of_triangle,
+        normals: raw.normals,
+        colors: raw.colors,
+        uvs: raw.uvs,
+    });
+    if parts.triangles.is_empty() {
+        return Err(file_error(
+            path,
+            "face",
+            format!("no triangle of non-zero area ({repairs})"),
+        ));
+    }
     let with_attributes = |mesh: TriangleMesh| -> Result<TriangleMesh, RenderError> {
         let mut mesh = mesh;
-        if let Some(normals) = raw.normals {
+        if let Some(normals) = parts.normals {
             mesh = mesh.with_normals(normals)?;
         }
-        if let Some(colors) = raw.colors {
+        if let Some(colors) = parts.colors {
             mesh = mesh.with_colors(colors)?;
         }
-        if let Some(uvs) = raw.uvs {
+        if let Some(uvs) = parts.uvs {
             mesh = mesh.with_uvs(uvs)?;
         }
         Ok(mesh)
     };
-    TriangleMesh::new(positions, triangles)
+    let face_of_triangle = parts.face_of_triangle;
+    let mesh = TriangleMesh::new(parts.positions, parts.triangles)
         .and_then(with_attributes)
         .map_err(|error| {
             let field = match &error {
-                RenderError::NonFiniteVertex { vertex } => format!("vertex[{vertex}]"),
                 RenderError::IndexOutOfRange { triangle, .. }
                 | RenderError::DegenerateTriangle { triangle } => {
                     format!("face[{}]", face_of_triangle[*triangle])
@@ -72,7 +121,8 @@ pub fn load_mesh(path: &Path, scale: f64) -> Result<TriangleMesh, RenderError> {
                 _ => "mesh".into(),
             };
             file_error(path, &field, error.to_string())
-        })
+        })?;
+    Ok(LoadedMesh { mesh, repairs })
 }
 
 /// The vertices of a PLY or OBJ file (a point cloud, or a mesh's vertices), in metres.

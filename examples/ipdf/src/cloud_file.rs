@@ -17,7 +17,8 @@ pub const MESH_SAMPLES: usize = 20_000;
 /// one).
 pub fn read_cloud(path: &Path, scale: f64) -> Result<PointCloud, PipelineError> {
     match depth_render::load_mesh(path, scale) {
-        Ok(mesh) => {
+        Ok(loaded) => {
+            let mesh = loaded.mesh;
             let count = MESH_SAMPLES.max(mesh.positions().len());
             let (points, normals) = depth_render::sample_surface(&mesh, count, 0);
             return Ok(PointCloud::new(points)?.with_normals(normals)?);

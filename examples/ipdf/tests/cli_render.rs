@@ -219,3 +219,58 @@ fn noise_changes_depth_deterministically_per_seed() {
         "{centre}"
     );
 }
+
+#[test]
+fn a_messy_mesh_renders_as_the_clean_one_with_one_warning_line() {
+    let input = inputs();
+    // Two unused vertices and two faces with a repeated corner.
+    let messy = cube_ply()
+        .replace("element vertex 8", "element vertex 10")
+        .replace("element face 6", "element face 8")
+        .replace("end_header\n", "end_header\n0 0 900\n5 5 900\n")
+        .replace("\n4 0 4 6 2", "\n3 1 1 4\n3 2 2 5\n4 0 4 6 2");
+    // The two extra vertices shift the cube's indices by 2.
+    let mut lines: Vec<String> = messy.lines().map(String::from).collect();
+    let header_end = lines.iter().position(|l| l == "end_header").unwrap();
+    for line in lines.iter_mut().skip(header_end + 11) {
+        let numbers: Vec<u32> = line.split(' ').map(|w| w.parse().unwrap()).collect();
+        let shifted: Vec<String> = std::iter::once(numbers[0].to_string())
+            .chain(numbers[1..].iter().map(|i| (i + 2).to_string()))
+            .collect();
+        *line = shifted.join(" ");
+    }
+    let messy = write(input.dir.path(), "messy.ply", &(lines.join("\n") + "\n"));
+    let (clean_depth, messy_depth) = (
+        input.dir.path().join("clean.png"),
+        input.dir.path().join("messy.png"),
+    );
+    let clean = ipdf(&render_args(
+        &input.mesh,
+        &input.camera,
+        &input.pose,
+        &clean_depth,
+    ));
+    assert!(clean.status.success() && clean.stderr.is_empty());
+    let mut args = render_args(&messy, &input.camera, &input.pose, &messy_depth);
+    args.push("--json");
+    let out = ipdf(&args);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.starts_with("warning: ")
+            && stderr.contains(
+                "messy.ply: dropped 2 zero-area triangles, dropped 2 unreferenced vertices"
+            ),
+        "{stderr}"
+    );
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(
+        summary["mesh_repairs"],
+        serde_json::json!({"degenerate_triangles": 2, "unreferenced_vertices": 2, "normals": 0})
+    );
+    assert_eq!(
+        std::fs::read(&clean_depth).unwrap(),
+        std::fs::read(&messy_depth).unwrap()
+    );
+}

@@ -181,6 +181,9 @@ pub struct LabelSummary {
     pub labels: usize,
     /// Instances with a warning.
     pub warnings: usize,
+    /// What loading repaired in each object's mesh, by object id (meshes loaded by this run
+    /// that needed repairs only).
+    pub mesh_repairs: BTreeMap<u32, depth_render::MeshRepairs>,
     /// Failed instances by kind ([`LabelFailure::kind`]).
     pub failures: BTreeMap<&'static str, usize>,
     /// Wall-clock seconds.
@@ -302,7 +305,7 @@ pub fn label_dataset(
             if !models.contains_key(obj_id) {
                 models.insert(
                     *obj_id,
-                    load_model(dataset, *obj_id, dataset_options, options)?,
+                    load_model(dataset, *obj_id, dataset_options, options, &mut summary)?,
                 );
             }
         }
@@ -389,19 +392,25 @@ fn scene_instances(
         .collect())
 }
 
-/// The prepared model of `obj_id`, or `None` when it has no mesh file.
+/// The prepared model of `obj_id`, or `None` when it has no mesh file; what loading repaired
+/// in the mesh goes into `summary`.
 fn load_model(
     dataset: &BopDataset,
     obj_id: u32,
     dataset_options: &DatasetOptions,
     options: &LabelOptions,
+    summary: &mut LabelSummary,
 ) -> Result<Option<Arc<ObjectModel>>, LabelError> {
     let path = dataset.model_path(obj_id);
     if !path.exists() {
         return Ok(None);
     }
-    let mesh = depth_render::load_mesh(&path, dataset_options.mesh_scale)?;
+    let loaded = depth_render::load_mesh(&path, dataset_options.mesh_scale)?;
+    let mesh = loaded.mesh;
     depth_render::check_mesh_size(&mesh, &path, dataset_options.mesh_scale, "--mesh-scale")?;
+    if !loaded.repairs.is_empty() {
+        summary.mesh_repairs.insert(obj_id, loaded.repairs);
+    }
     Ok(Some(Arc::new(ObjectModel::new(obj_id, &mesh, options)?)))
 }
 

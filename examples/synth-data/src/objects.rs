@@ -3,7 +3,7 @@
 //! mesh file.
 use std::path::Path;
 
-use depth_render::{Primitive, TriangleMesh, load_mesh};
+use depth_render::{MeshRepairs, Primitive, TriangleMesh, load_mesh};
 use metrics::SymmetryGroup;
 
 use bop_dataset::FileError;
@@ -152,9 +152,9 @@ impl SynthObject {
     }
 
     /// An object from a mesh file (`scale`: its unit in metres, 0.001 for BOP's mm), with no
-    /// known symmetry, grey.
-    pub fn from_mesh_file(path: &Path, scale: f64) -> Result<Self, FileError> {
-        let mesh = load_mesh(path, scale).map_err(|e| match e {
+    /// known symmetry, grey; and what loading repaired in the mesh.
+    pub fn from_mesh_file(path: &Path, scale: f64) -> Result<(Self, MeshRepairs), FileError> {
+        let loaded = load_mesh(path, scale).map_err(|e| match e {
             depth_render::RenderError::MeshFile {
                 path,
                 field,
@@ -166,11 +166,12 @@ impl SynthObject {
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| "mesh".into());
-        Ok(Self {
+        let object = Self {
             name,
-            mesh,
+            mesh: loaded.mesh,
             symmetry: SymmetryGroup::none(),
             colour: [0.7, 0.7, 0.7],
-        })
+        };
+        Ok((object, loaded.repairs))
     }
 }

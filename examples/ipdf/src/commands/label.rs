@@ -1,6 +1,7 @@
 //! `ipdf label`: pseudo ground-truth pose sets for every instance of a BOP split (see
 //! the `pseudo-label` crate), and optionally their scores against the ground truth.
 use super::choice::choice;
+use super::warn_repairs;
 use std::path::PathBuf;
 
 use anyhow::Result;
@@ -91,6 +92,9 @@ pub fn run(args: &LabelArgs, seed: u64) -> Result<serde_json::Value> {
     let progress = bar(dataset.image_count(&args.split)? as u64, "images");
     let summary = label_dataset(&dataset, &dataset_options, &options, &progress)?;
     progress.finish_and_clear();
+    for (obj_id, repairs) in &summary.mesh_repairs {
+        warn_repairs(&dataset.model_path(*obj_id), repairs);
+    }
     let mut result = serde_json::to_value(&summary)?;
     let rate = |count: usize| count as f64 / summary.seconds.max(1e-9);
     result["failed"] = json!(summary.failures.values().sum::<usize>());

@@ -31,3 +31,10 @@ pub fn check_extension(
     }
     Ok(())
 }
+
+/// One warning line on standard error for a mesh that loading repaired.
+pub fn warn_repairs(path: &std::path::Path, repairs: &depth_render::MeshRepairs) {
+    if !repairs.is_empty() {
+        eprintln!("warning: {}: {repairs}", path.display());
+    }
+}

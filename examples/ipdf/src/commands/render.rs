@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use super::check_extension;
+use super::{check_extension, warn_repairs};
 use anyhow::{Context, Result, bail};
 use depth_render::{
     DepthNoise, Instance, Lighting, Material, Scene, Window, check_mesh_size, load_mesh,
@@ -66,7 +66,9 @@ pub fn run(args: &RenderArgs, seed: u64) -> Result<serde_json::Value> {
     if let Some(path) = &args.mask {
         check_extension("--mask", path, "png", "the mask (8-bit PNG)")?;
     }
-    let mesh = load_mesh(&args.mesh, args.mesh_scale)?;
+    let loaded = load_mesh(&args.mesh, args.mesh_scale)?;
+    warn_repairs(&args.mesh, &loaded.repairs);
+    let mesh = loaded.mesh;
     check_mesh_size(&mesh, &args.mesh, args.mesh_scale, "--mesh-scale")?;
     let camera_json = bop_dataset::read_json(&args.camera)?;
     let camera = bop_dataset::camera_from_json(&camera_json, &args.camera, "", None)?;
@@ -125,6 +127,7 @@ pub fn run(args: &RenderArgs, seed: u64) -> Result<serde_json::Value> {
         "depth_max_m": depths.reduce(f64::max),
         "depth_scale": depth_scale,
         "render_ms": render_ms,
+        "mesh_repairs": loaded.repairs,
     });
     if pixels == 0 {
         let warning = "the object is not in view: check the pose (cam_t_m2c is in millimetres, \

@@ -1,5 +1,6 @@
 //! `ipdf synth`: a synthetic RGB-D dataset in BOP format (see `ipdf::synth`).
 use super::choice::choice;
+use super::warn_repairs;
 use std::path::PathBuf;
 
 use anyhow::{Result, bail};
@@ -82,7 +83,8 @@ pub fn run(args: &SynthArgs, seed: u64) -> Result<serde_json::Value> {
         args.mesh
             .iter()
             .map(|path| {
-                let object = SynthObject::from_mesh_file(path, args.mesh_scale)?;
+                let (object, repairs) = SynthObject::from_mesh_file(path, args.mesh_scale)?;
+                warn_repairs(path, &repairs);
                 check_mesh_size(&object.mesh, path, args.mesh_scale, "--mesh-scale")?;
                 Ok(object)
             })
