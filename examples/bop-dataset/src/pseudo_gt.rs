@@ -34,6 +34,9 @@ pub struct PseudoInstance {
     pub error: Option<String>,
     /// A doubt about a labelled instance.
     pub warning: Option<String>,
+    /// For an instance whose poses all scored above the threshold: the best of them, for
+    /// inspection (`"best"` beside `"error"`).
+    pub best: Option<PseudoLabel>,
 }
 
 /// Reads `scene_pseudo_gt.json`.
@@ -69,19 +72,18 @@ pub fn read_pseudo_gt(path: &Path) -> Result<BTreeMap<u32, Vec<PseudoInstance>>,
                         })?
                         .iter()
                         .enumerate()
-                        .map(|(j, label)| {
-                            let prefix = format!("{prefix}labels[{j}].");
-                            Ok(PseudoLabel {
-                                pose: pose_from_json(label, path, &prefix)?,
-                                score: number(label, "score", path, &prefix)?,
-                            })
-                        })
+                        .map(|(j, label)| read_label(label, path, &format!("{prefix}labels[{j}].")))
                         .collect::<Result<_, FileError>>()?;
+                    let best = match item.get("best") {
+                        None | Some(Value::Null) => None,
+                        Some(best) => Some(read_label(best, path, &format!("{prefix}best."))?),
+                    };
                     Ok(PseudoInstance {
                         obj_id: id_at(item, "obj_id", path, &prefix)?,
                         labels,
                         error: text(item, "error", &prefix)?,
                         warning: text(item, "warning", &prefix)?,
+                        best,
                     })
                 })
                 .collect::<Result<_, FileError>>()?;
@@ -101,16 +103,11 @@ pub fn write_pseudo_gt(
             let list: Vec<Value> = instances
                 .iter()
                 .map(|instance| {
-                    let labels: Vec<Value> = instance
-                        .labels
-                        .iter()
-                        .map(|label| {
-                            let mut entry = pose_to_json(&label.pose);
-                            entry["score"] = json!(label.score);
-                            entry
-                        })
-                        .collect();
+                    let labels: Vec<Value> = instance.labels.iter().map(label_to_json).collect();
                     let mut entry = json!({"obj_id": instance.obj_id, "labels": labels});
+                    if let Some(best) = &instance.best {
+                        entry["best"] = label_to_json(best);
+                    }
                     if let Some(error) = &instance.error {
                         entry["error"] = json!(error);
                     }
@@ -124,4 +121,19 @@ pub fn write_pseudo_gt(
         })
         .collect();
     write_json_by_id(path, &entries)
+}
+
+/// `{"cam_R_m2c", "cam_t_m2c", "score"}` of `label`.
+fn label_to_json(label: &PseudoLabel) -> Value {
+    let mut entry = pose_to_json(&label.pose);
+    entry["score"] = json!(label.score);
+    entry
+}
+
+/// A label's pose and score from `value`, fields named after `prefix`.
+fn read_label(value: &Value, path: &Path, prefix: &str) -> Result<PseudoLabel, FileError> {
+    Ok(PseudoLabel {
+        pose: pose_from_json(value, path, prefix)?,
+        score: number(value, "score", path, prefix)?,
+    })
 }

@@ -137,18 +137,36 @@ fn the_writers_round_trip_through_the_readers() {
                 ],
                 error: None,
                 warning: Some("doubt".into()),
+                best: None,
             },
             PseudoInstance {
                 obj_id: 12,
                 labels: vec![],
                 error: Some("the mask is empty".into()),
                 warning: None,
+                best: None,
+            },
+            PseudoInstance {
+                obj_id: 3,
+                labels: vec![],
+                error: Some("no pose explains the depth".into()),
+                warning: None,
+                best: Some(PseudoLabel {
+                    pose: pose(6),
+                    score: 0.0069,
+                }),
             },
         ],
     )]);
     write_pseudo_gt(&path("scene_pseudo_gt.json"), &labels).unwrap();
     let back = read_pseudo_gt(&path("scene_pseudo_gt.json")).unwrap();
     assert_eq!(back[&0][1], labels[&0][1]);
+    let (best, expected) = (
+        back[&0][2].best.as_ref().unwrap(),
+        labels[&0][2].best.as_ref().unwrap(),
+    );
+    assert!(close(&best.pose, &expected.pose) && (best.score - expected.score).abs() < 1e-15);
+    assert!(back[&0][2].labels.is_empty() && back[&0][0].best.is_none());
     assert_eq!(back[&0][0].warning, labels[&0][0].warning);
     for (a, b) in labels[&0][0].labels.iter().zip(&back[&0][0].labels) {
         assert!(close(&a.pose, &b.pose) && (a.score - b.score).abs() < 1e-15);

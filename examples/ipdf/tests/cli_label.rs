@@ -305,3 +305,47 @@ fn bad_flags_and_missing_inputs_fail_with_one_line() {
         "other objects",
     );
 }
+
+#[test]
+fn an_instance_no_pose_explains_keeps_its_best_pose_for_inspection() {
+    let dir = tempfile::tempdir().unwrap();
+    synth(dir.path(), "box", 2, &[]);
+    // A threshold no pose can meet: every instance fails, each with its best pose.
+    let run = ipdf_json(&[
+        "label",
+        "--dataset",
+        s(dir.path()),
+        "--max-score",
+        "1e-6",
+        "--score-floor",
+        "0",
+    ]);
+    assert_eq!(
+        (&run["labelled"], &run["failures"]["no pose accepted"]),
+        (&0.into(), &2.into())
+    );
+    let labels: Value = serde_json::from_slice(
+        &std::fs::read(dir.path().join("train/000000/scene_pseudo_gt.json")).unwrap(),
+    )
+    .unwrap();
+    for instance in labels
+        .as_object()
+        .unwrap()
+        .values()
+        .flat_map(|v| v.as_array().unwrap())
+    {
+        assert!(
+            instance["error"]
+                .as_str()
+                .unwrap()
+                .contains("no pose explains")
+        );
+        assert_eq!(instance["labels"], serde_json::json!([]));
+        let best = &instance["best"];
+        assert_eq!(best["cam_R_m2c"].as_array().unwrap().len(), 9, "{instance}");
+        assert_eq!(best["cam_t_m2c"].as_array().unwrap().len(), 3);
+        // A good pose, only not good enough for the impossible threshold: millimetres.
+        let score = best["score"].as_f64().unwrap();
+        assert!(score > 1e-6 && score < 0.005, "{instance}");
+    }
+}

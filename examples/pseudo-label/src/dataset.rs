@@ -7,8 +7,9 @@ use indicatif::ProgressBar;
 use rayon::prelude::*;
 
 use bop_dataset::{
-    BopDataset, FileError, Intrinsics, PseudoInstance, SceneDir, as_recorded, check_recorded,
-    read_depth, read_mask, read_object_ids, read_scene_camera, write_json, write_pseudo_gt,
+    BopDataset, FileError, Intrinsics, PseudoInstance, PseudoLabel, SceneDir, as_recorded,
+    check_recorded, read_depth, read_mask, read_object_ids, read_scene_camera, write_json,
+    write_pseudo_gt,
 };
 
 use crate::instance::{LabelFailure, label_instance};
@@ -483,15 +484,25 @@ fn label_image(
             };
             let seed = instance_seed(options.seed, scene.id, im_id, k);
             let found = label_instance(model, &observation, options, seed);
-            let (labels, error, kind) = match found.labels {
-                Ok(labels) => (labels, None, None),
+            let (labels, error, kind) = match &found.labels {
+                Ok(labels) => (labels.clone(), None, None),
                 Err(failure) => (Vec::new(), Some(failure.to_string()), Some(failure.kind())),
+            };
+            let best = match found.labels {
+                Err(LabelFailure::NoPoseAccepted {
+                    best_mm, best_pose, ..
+                }) if best_mm.is_finite() => Some(PseudoLabel {
+                    pose: best_pose,
+                    score: best_mm * 1e-3,
+                }),
+                _ => None,
             };
             let instance = PseudoInstance {
                 obj_id,
                 labels,
                 error,
                 warning: found.warning,
+                best,
             };
             (instance, kind)
         })

@@ -75,6 +75,8 @@ pub enum LabelFailure {
         best_mm: f64,
         /// The threshold (mm).
         threshold_mm: f64,
+        /// The pose that scored `best_mm` (model→camera), kept for inspection.
+        best_pose: Isometry3<f64>,
     },
     /// The observed cloud and the model differ in size by more than a wrong mask explains.
     #[error(
@@ -445,12 +447,14 @@ fn pose_set(
             .collect::<Result<_, _>>()?,
     };
     candidates.sort_by(|a, b| a.1.total_cmp(&b.1));
-    let best_score = candidates.first().map_or(f64::INFINITY, |c| c.1);
+    let best = candidates.first().copied();
     candidates.retain(|c| c.1 <= threshold);
     if candidates.is_empty() {
+        let (best_pose, best_score) = best.unwrap_or((Isometry3::identity(), f64::INFINITY));
         return Err(LabelFailure::NoPoseAccepted {
             best_mm: best_score * 1e3,
             threshold_mm: threshold * 1e3,
+            best_pose,
         });
     }
     let merged = merge_duplicates(candidates, options.merge_angle_deg.to_radians());
