@@ -27,31 +27,26 @@ impl MeshRepairs {
 impl fmt::Display for MeshRepairs {
     /// "dropped 2 zero-area triangles, dropped 5 unreferenced vertices, recomputed 1 normal".
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let plural =
-            |n: usize, one: &str, many: &str| format!("{n} {}", if n == 1 { one } else { many });
-        let mut parts = Vec::new();
-        if self.degenerate_triangles > 0 {
-            let what = plural(
+        let counts = [
+            (
                 self.degenerate_triangles,
+                "dropped",
                 "zero-area triangle",
                 "zero-area triangles",
-            );
-            parts.push(format!("dropped {what}"));
-        }
-        if self.unreferenced_vertices > 0 {
-            let what = plural(
+            ),
+            (
                 self.unreferenced_vertices,
+                "dropped",
                 "unreferenced vertex",
                 "unreferenced vertices",
-            );
-            parts.push(format!("dropped {what}"));
-        }
-        if self.normals > 0 {
-            parts.push(format!(
-                "recomputed {}",
-                plural(self.normals, "normal", "normals")
-            ));
-        }
+            ),
+            (self.normals, "recomputed", "normal", "normals"),
+        ];
+        let parts: Vec<String> = counts
+            .iter()
+            .filter(|(n, ..)| *n > 0)
+            .map(|(n, verb, one, many)| format!("{verb} {n} {}", if *n == 1 { one } else { many }))
+            .collect();
         if parts.is_empty() {
             f.write_str("nothing repaired")
         } else {
