@@ -242,14 +242,13 @@ impl<'m> Predictor<'m> {
                 break;
             }
         }
-        // Each heavy cell's centre, then its 8 children's.
-        let (grid, finer) = (Grid::new(level)?, Grid::new(level + 1)?);
+        // Each heavy cell's centre, then its 8 children's, from the cached grids.
         let mut rotations = Vec::with_capacity(heavy.len() * 9);
         for &i in &heavy {
             let index = distribution.cells[i].1;
-            rotations.push(grid.rotation(index)?);
-            for child in grid.children(index)? {
-                rotations.push(finer.rotation(child)?);
+            rotations.push(self.grid(level)?.rotation(index)?);
+            for child in so3_grid::children(level, index)? {
+                rotations.push(self.grid(level + 1)?.rotation(child)?);
             }
         }
         let log_density = self.log_densities(image, &rotations, distribution)?;
