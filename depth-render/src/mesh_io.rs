@@ -54,7 +54,6 @@ pub fn load_mesh(path: &Path, scale: f64) -> Result<LoadedMesh, RenderError> {
         ));
     }
     let mut triangles = Vec::new();
-    let mut face_of_triangle = Vec::new();
     for (face, polygon) in polygons.iter().enumerate() {
         if polygon.len() < 3 {
             return Err(file_error(
@@ -75,13 +74,11 @@ pub fn load_mesh(path: &Path, scale: f64) -> Result<LoadedMesh, RenderError> {
         }
         for k in 1..polygon.len() - 1 {
             triangles.push([polygon[0], polygon[k], polygon[k + 1]]);
-            face_of_triangle.push(face);
         }
     }
-    let (parts, repairs) = repair(MeshParts {
+    let (parts, repairs, original_vertex) = repair(MeshParts {
         positions,
         triangles,
-        face_of_triangle,
         normals: raw.normals,
         colors: raw.colors,
         uvs: raw.uvs,
@@ -106,18 +103,19 @@ pub fn load_mesh(path: &Path, scale: f64) -> Result<LoadedMesh, RenderError> {
         }
         Ok(mesh)
     };
-    let face_of_triangle = parts.face_of_triangle;
+    // Indices, coordinates and areas were checked or repaired above: what is left to refuse
+    // is an attribute (a colour outside [0, 1], a non-finite texture coordinate), named by the
+    // file's vertex index.
     let mesh = TriangleMesh::new(parts.positions, parts.triangles)
         .and_then(with_attributes)
         .map_err(|error| {
             let field = match &error {
-                RenderError::IndexOutOfRange { triangle, .. }
-                | RenderError::DegenerateTriangle { triangle } => {
-                    format!("face[{}]", face_of_triangle[*triangle])
-                }
                 RenderError::InvalidAttribute {
                     attribute, vertex, ..
-                } => format!("vertex[{vertex}].{attribute}"),
+                } => {
+                    let vertex = original_vertex.get(*vertex).copied().unwrap_or(*vertex);
+                    format!("vertex[{vertex}].{attribute}")
+                }
                 _ => "mesh".into(),
             };
             file_error(path, &field, error.to_string())

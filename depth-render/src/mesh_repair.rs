@@ -60,8 +60,6 @@ impl fmt::Display for MeshRepairs {
 pub(crate) struct MeshParts {
     pub positions: Vec<Point3<f32>>,
     pub triangles: Vec<[u32; 3]>,
-    /// The file's face of each triangle (for errors).
-    pub face_of_triangle: Vec<usize>,
     pub normals: Option<Vec<Vector3<f32>>>,
     pub colors: Option<Vec<[f32; 3]>>,
     pub uvs: Option<Vec<[f32; 2]>>,
@@ -83,24 +81,23 @@ fn kept_only<T>(values: Vec<T>, new_index: &[u32]) -> Vec<T> {
         .collect()
 }
 
-/// `parts` repaired (see the module docs), and what was done.
-pub(crate) fn repair(parts: MeshParts) -> (MeshParts, MeshRepairs) {
+/// `parts` repaired (see the module docs), what was done, and the index in `parts` of each
+/// vertex kept (so that errors can name the file's vertex).
+pub(crate) fn repair(parts: MeshParts) -> (MeshParts, MeshRepairs, Vec<usize>) {
     let mut repairs = MeshRepairs::default();
     let MeshParts {
         positions,
         triangles,
-        face_of_triangle,
         normals,
         colors,
         uvs,
     } = parts;
     // Zero-area triangles.
     let before = triangles.len();
-    let (triangles, face_of_triangle): (Vec<[u32; 3]>, Vec<usize>) = triangles
+    let triangles: Vec<[u32; 3]> = triangles
         .into_iter()
-        .zip(face_of_triangle)
-        .filter(|(triangle, _)| area_vector(&positions, triangle).norm() > 0.0)
-        .unzip();
+        .filter(|triangle| area_vector(&positions, triangle).norm() > 0.0)
+        .collect();
     repairs.degenerate_triangles = before - triangles.len();
     // Unreferenced vertices, renumbered in their order.
     let mut new_index = vec![u32::MAX; positions.len()];
@@ -115,6 +112,7 @@ pub(crate) fn repair(parts: MeshParts) -> (MeshParts, MeshRepairs) {
         kept += 1;
     }
     repairs.unreferenced_vertices = positions.len() - kept as usize;
+    let original: Vec<usize> = kept_only((0..positions.len()).collect(), &new_index);
     let triangles: Vec<[u32; 3]> = triangles
         .iter()
         .map(|t| t.map(|i| new_index[i as usize]))
@@ -154,11 +152,11 @@ pub(crate) fn repair(parts: MeshParts) -> (MeshParts, MeshRepairs) {
         MeshParts {
             positions,
             triangles,
-            face_of_triangle,
             normals,
             colors,
             uvs,
         },
         repairs,
+        original,
     )
 }

@@ -150,7 +150,17 @@ fn what_cannot_be_repaired_is_refused_naming_the_field() {
             "face[0]",
         ),
     ];
-    for (name, text, field) in cases {
+    // A colour outside [0, 1] is named by the file's vertex, also after an unused vertex
+    // before it was dropped.
+    let colour = (
+        "colour.ply",
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n\
+         property float z\nproperty float red\nproperty float green\nproperty float blue\n\
+         element face 1\nproperty list uchar int vertex_indices\nend_header\n\
+         5 5 5 0 0 0\n0 0 0 0 0 0\n1 0 0 2 0 0\n0 1 0 0 0 0\n3 1 2 3\n",
+        "vertex[2].colors",
+    );
+    for (name, text, field) in cases.into_iter().chain([colour]) {
         let path = dir.path().join(name);
         std::fs::write(&path, text).unwrap();
         match load_mesh(&path, 1.0) {
