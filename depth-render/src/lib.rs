@@ -61,7 +61,7 @@ mod tile_cast;
 pub use camera::PinholeCamera;
 pub use compare::{depth_discrepancy, unproject};
 pub use error::RenderError;
-pub use mesh::{TriangleMesh, max_distance};
+pub use mesh::{TriangleMesh, bounding_box, max_distance};
 pub use mesh_io::{LoadedMesh, Vertices, load_mesh, load_vertices, write_ply};
 pub use mesh_repair::MeshRepairs;
 pub use mesh_scale::{PLAUSIBLE_SIZE_M, check_mesh_size};

@@ -5,6 +5,16 @@ use rayon::prelude::*;
 
 use crate::RenderError;
 
+/// `(min, max)` corners of the axis-aligned bounding box of `points`, `None` when empty.
+pub fn bounding_box(points: &[Point3<f32>]) -> Option<(Point3<f32>, Point3<f32>)> {
+    let first = *points.first()?;
+    Some(
+        points
+            .iter()
+            .fold((first, first), |(lo, hi), p| (lo.inf(p), hi.sup(p))),
+    )
+}
+
 /// The largest distance between two of `points` (0 for fewer than two), in parallel.
 pub fn max_distance(points: &[Point3<f32>]) -> f32 {
     points
@@ -189,13 +199,9 @@ impl TriangleMesh {
 
     /// `(min, max)` corners of the axis-aligned bounding box.
     pub fn bounds(&self) -> (Point3<f32>, Point3<f32>) {
-        let mut lo = self.positions[0];
-        let mut hi = lo;
-        for p in &self.positions {
-            lo = lo.inf(p);
-            hi = hi.sup(p);
-        }
-        (lo, hi)
+        // A mesh has at least one vertex (see `new`).
+        let origin = Point3::origin();
+        bounding_box(&self.positions).unwrap_or((origin, origin))
     }
 
     /// Unit outward normal of triangle `index` (model frame).

@@ -164,16 +164,10 @@ const VOXELS_ACROSS: (f64, f64) = (3.0, 20_000.0);
 /// fails on it with a count of neighbours: the sign of a file in millimetres read as metres
 /// (or the reverse), naming `--scale` and `--voxel`.
 fn check_units(cloud: &PointCloud, voxel: f32, scale: f64, path: &Path) -> Result<()> {
-    let points = cloud.points();
-    let Some(&first) = points.first() else {
+    let Some((low, high)) = depth_render::bounding_box(cloud.points()) else {
         // Registration names an empty cloud itself.
         return Ok(());
     };
-    let (mut low, mut high) = (first, first);
-    for p in points {
-        low = low.inf(p);
-        high = high.sup(p);
-    }
     let extent = f64::from((high - low).norm());
     let across = extent / f64::from(voxel);
     if across > VOXELS_ACROSS.1 {
