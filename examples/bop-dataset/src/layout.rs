@@ -105,14 +105,7 @@ impl BopDataset {
         let mut ids = Vec::new();
         for entry in entries {
             let entry = entry.map_err(|e| FileError::new(&dir, "folder", e.to_string()))?;
-            let name = entry.file_name();
-            let name = name.to_string_lossy();
-            if entry.path().is_dir()
-                && name.len() == 6
-                && let Ok(id) = name.parse::<u32>()
-            {
-                ids.push(id);
-            }
+            ids.extend(scene_folder_id(&entry));
         }
         ids.sort_unstable();
         Ok(ids)
@@ -123,17 +116,11 @@ impl BopDataset {
         let Ok(entries) = std::fs::read_dir(&self.root) else {
             return Vec::new();
         };
-        let is_scene = |name: &std::ffi::OsStr| {
-            name.len() == 6
-                && name
-                    .to_str()
-                    .is_some_and(|n| n.bytes().all(|b| b.is_ascii_digit()))
-        };
         let mut splits: Vec<String> = entries
             .flatten()
             .filter(|entry| {
                 std::fs::read_dir(entry.path()).is_ok_and(|mut scenes| {
-                    scenes.any(|scene| scene.is_ok_and(|s| is_scene(&s.file_name())))
+                    scenes.any(|scene| scene.is_ok_and(|s| scene_folder_id(&s).is_some()))
                 })
             })
             .map(|entry| entry.file_name().to_string_lossy().into_owned())
@@ -161,6 +148,17 @@ impl BopDataset {
             dir: self.root.join(split).join(format!("{scene_id:06}")),
             id: scene_id,
         }
+    }
+}
+
+/// The scene id of a split's entry: a folder named by six digits (`000001`).
+fn scene_folder_id(entry: &std::fs::DirEntry) -> Option<u32> {
+    let name = entry.file_name();
+    let name = name.to_str()?;
+    if name.len() == 6 && entry.path().is_dir() {
+        name.parse().ok()
+    } else {
+        None
     }
 }
 
