@@ -270,6 +270,11 @@ fn malformed_files_name_the_file_and_the_key() {
     );
     let path = write("pseudo.json", r#"{"3": [{"obj_id": 1, "labels": {}}]}"#);
     assert_eq!(read_pseudo_gt(&path).unwrap_err().field, "3[0].labels");
+    let path = write(
+        "best.json",
+        r#"{"3": [{"obj_id": 1, "labels": [], "error": "no pose", "best": {"cam_R_m2c": [1, 0, 0, 0, 1, 0, 0, 0, 1], "cam_t_m2c": [0, 0, 700], "score": "low"}}]}"#,
+    );
+    assert_eq!(read_pseudo_gt(&path).unwrap_err().field, "3[0].best.score");
     let path = write("truncated.json", r#"{"3": [{"obj_id": 1, "lab"#);
     assert_eq!(read_pseudo_gt(&path).unwrap_err().field, "file");
     assert!(
