@@ -8,7 +8,7 @@ use std::hint::black_box;
 use std::time::Duration;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use depth_render::Material;
+use depth_render::{DepthSensor, MaskErrors, Material};
 use pseudo_label::{
     LabelOptions, ObjectModel, Observation, Strategy, global_alignment, label_instance,
     observed_cloud, observed_features, refine_pose, score_pose,
@@ -31,7 +31,8 @@ fn labelling(c: &mut Criterion) {
         let style = FrameStyle {
             material: Material::Uniform(object.colour),
             distractors: 0,
-            noise: None,
+            sensor: Some(DepthSensor::kinect()),
+            mask_errors: Some(MaskErrors::default()),
         };
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
         let frame = FrameRenderer::new(&object.mesh)

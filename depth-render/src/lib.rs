@@ -15,7 +15,11 @@
 //!   [`Scene::normals`], [`Scene::barycentrics`] and [`Scene::shade`] (Lambert + ambient,
 //!   [`Material`]: flat colour, vertex colours, image texture or symmetry-breaking patches).
 //! - [`unproject`] depth back to points, [`depth_discrepancy`] (the render-and-compare score),
-//!   [`DepthNoise`] (a sensor model), [`sample_surface`] (area-weighted points and normals).
+//!   [`sample_surface`] (area-weighted points and normals).
+//! - [`DepthSensor`]: what a real depth camera reads of a clean rendering (axial and lateral
+//!   noise, quantisation, shadows, dropped pixels, misregistration), with presets for
+//!   structured light and active stereo ([`SensorPreset`]); [`MaskErrors`]: a detector's
+//!   imprecise masks.
 //!
 //! ```
 //! use depth_render::{Instance, Lighting, Material, PinholeCamera, Primitive, Scene, Window};
@@ -44,15 +48,16 @@
 mod camera;
 mod compare;
 mod error;
+mod mask_errors;
 mod mesh;
 mod mesh_io;
 mod mesh_repair;
 mod mesh_scale;
-mod noise;
 pub mod primitives;
 mod render;
 mod resting;
 mod sampling;
+mod sensor;
 mod shading;
 mod surface;
 mod symmetry;
@@ -61,13 +66,14 @@ mod tile_cast;
 pub use camera::PinholeCamera;
 pub use compare::{depth_discrepancy, unproject};
 pub use error::RenderError;
+pub use mask_errors::MaskErrors;
 pub use mesh::{TriangleMesh, bounding_box, max_distance};
 pub use mesh_io::{LoadedMesh, Vertices, load_mesh, load_vertices, write_ply};
 pub use mesh_repair::MeshRepairs;
 pub use mesh_scale::{PLAUSIBLE_SIZE_M, check_mesh_size};
-pub use noise::DepthNoise;
 pub use render::{Instance, NO_TRIANGLE, Rendering, Scene, Window};
 pub use resting::{RestingPose, group_by_symmetry, resting_poses};
 pub use sampling::sample_surface;
+pub use sensor::{DepthSensor, SensorPreset};
 pub use shading::{ImageTexture, Lighting, Material};
 pub use symmetry::{Primitive, ShapeSymmetry};

@@ -6,7 +6,7 @@
 //! cargo run --release -p ipdf --example label_image
 //! ```
 use anyhow::{Context, Result};
-use depth_render::Material;
+use depth_render::{DepthSensor, MaskErrors, Material};
 use pseudo_label::{LabelOptions, ObjectModel, Observation, label_instance};
 use rand::SeedableRng;
 use synth_data::{FrameRenderer, FrameStyle, ObjectKind, SynthObject, SynthOptions, ViewRange};
@@ -19,7 +19,8 @@ fn main() -> Result<()> {
     let style = FrameStyle {
         material: Material::Uniform(object.colour),
         distractors: 2,
-        noise: Some(Default::default()),
+        sensor: Some(DepthSensor::kinect()),
+        mask_errors: Some(MaskErrors::default()),
     };
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
     let frame = FrameRenderer::new(&object.mesh)?.render(

@@ -408,7 +408,8 @@ pub fn rendered_examples(
     let style = synth_data::FrameStyle {
         material: depth_render::Material::Uniform(object.colour),
         distractors: 0,
-        noise: None,
+        sensor: None,
+        mask_errors: None,
     };
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let (width, height) = (camera.width as usize, camera.height as usize);

@@ -269,8 +269,8 @@ fn render_reports_the_depth_it_writes_and_honours_the_camera_files_depth_scale()
         (clean["depth_max_m"].as_f64().unwrap() - max).abs() < 1e-4,
         "{clean} {max}"
     );
-    // With --noise the figures are the noisy depth's, as written.
-    let noisy = ipdf_json(&args(&["--noise"]));
+    // With --sensor the figures are those of the depth the sensor reads, as written.
+    let noisy = ipdf_json(&args(&["--sensor", "kinect"]));
     let (min, max) = read_back(0.1);
     assert!(
         (noisy["depth_min_m"].as_f64().unwrap() - min).abs() < 1e-4,

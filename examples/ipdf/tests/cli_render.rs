@@ -191,12 +191,19 @@ fn bad_inputs_exit_non_zero_with_the_file_and_field() {
 }
 
 #[test]
-fn noise_changes_depth_deterministically_per_seed() {
+fn a_sensor_changes_depth_deterministically_per_seed() {
     let input = inputs();
     let render = |seed: &str, name: &str| {
         let path = input.dir.path().join(name);
         let mut args = render_args(&input.mesh, &input.camera, &input.pose, &path);
-        args.extend(["--depth-scale", "0.1", "--noise", "--seed", seed]);
+        args.extend([
+            "--depth-scale",
+            "0.1",
+            "--sensor",
+            "realsense",
+            "--seed",
+            seed,
+        ]);
         let out = ipdf(&args);
         assert!(
             out.status.success(),
@@ -212,7 +219,7 @@ fn noise_changes_depth_deterministically_per_seed() {
     );
     assert_eq!(a, b);
     assert_ne!(a, c);
-    // Quantised to 1 mm (10 units of 0.1 mm), within a few σ of 480 mm.
+    // In the RealSense's 1 mm units (10 units of 0.1 mm), within a few σ of 480 mm.
     let centre = a[60 * 160 + 80];
     assert!(
         centre % 10 == 0 && (4700..=4900).contains(&centre),

@@ -14,15 +14,21 @@
 //! ground truth where there is one.
 //!
 //! ```
-//! use depth_render::Material;
+//! use depth_render::{DepthSensor, MaskErrors, Material};
 //! use pseudo_label::{LabelOptions, ObjectModel, Observation, label_instance};
 //! use synth_data::{FrameRenderer, FrameStyle, ObjectKind, SynthObject, SynthOptions, ViewRange};
 //! use rand::SeedableRng;
 //!
-//! // One rendered frame of the cracker box (in a dataset: its depth and mask_visib PNGs).
+//! // One frame of the cracker box as a Kinect sees it, with a detector's mask (in a dataset:
+//! // its depth and mask_visib PNGs).
 //! let object = SynthObject::built_in(ObjectKind::Box)?;
 //! let camera = SynthOptions::t_less_camera().camera;
-//! let style = FrameStyle { material: Material::Uniform(object.colour), distractors: 0, noise: None };
+//! let style = FrameStyle {
+//!     material: Material::Uniform(object.colour),
+//!     distractors: 0,
+//!     sensor: Some(DepthSensor::kinect()),
+//!     mask_errors: Some(MaskErrors::default()),
+//! };
 //! let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
 //! let frame = FrameRenderer::new(&object.mesh)?.render(&camera, &ViewRange::default(), &style, &mut rng)?;
 //!

@@ -1,8 +1,8 @@
 //! One synthetic frame: the object resting on a tabletop, a camera looking at it from a random
 //! elevation and distance, optional distractors, rendered into BOP images and annotations.
 use depth_render::{
-    DepthNoise, Instance, Lighting, Material, PinholeCamera, Primitive, RestingPose, Scene,
-    TriangleMesh, Window, resting_poses,
+    DepthSensor, Instance, Lighting, MaskErrors, Material, PinholeCamera, Primitive, RestingPose,
+    Scene, TriangleMesh, Window, resting_poses,
 };
 use nalgebra::{Isometry3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use rand::{Rng, RngExt};
@@ -100,11 +100,11 @@ pub struct FrameRenderer {
 pub struct Frame {
     /// Shaded colour, row-major.
     pub rgb: Vec<[u8; 3]>,
-    /// z-depth in metres (0: no reading), with noise when asked for.
+    /// z-depth in metres (0: no reading), as the sensor reads it when there is one.
     pub depth: Vec<f32>,
     /// The object's full silhouette.
     pub mask: Vec<bool>,
-    /// Its visible part.
+    /// Its visible part (with a detector's errors when asked for).
     pub mask_visib: Vec<bool>,
     /// Model→camera pose (metres).
     pub pose: Isometry3<f64>,
@@ -119,8 +119,10 @@ pub struct FrameStyle {
     pub material: Material,
     /// Distractor objects on the table around it.
     pub distractors: usize,
-    /// Depth noise, or clean depth.
-    pub noise: Option<DepthNoise>,
+    /// What the depth camera reads, or clean depth.
+    pub sensor: Option<DepthSensor>,
+    /// A detector's errors on the visible mask, or the exact mask.
+    pub mask_errors: Option<MaskErrors>,
 }
 
 impl FrameRenderer {
@@ -204,11 +206,16 @@ impl FrameRenderer {
                 mask[v * width + u] = true;
             }
         }
-        let depth = match &style.noise {
-            Some(noise) => noise.apply(&rendering.depth, width, rng.random()),
+        let depth = match &style.sensor {
+            Some(sensor) => sensor.apply(&rendering.depth, camera, rng.random()),
             None => rendering.depth,
         };
+        // The boxes and pixel counts are the true masks'.
         let info = gt_info(&mask, &mask_visib, &depth, width);
+        let mask_visib = match &style.mask_errors {
+            Some(errors) => errors.apply(&mask_visib, width, rng.random()),
+            None => mask_visib,
+        };
         Ok(Frame {
             rgb,
             depth,

@@ -1,7 +1,7 @@
 //! Synthetic RGB-D datasets in BOP format (`ipdf synth`): each frame shows one object resting
 //! on a tabletop in a physically plausible pose (a stable face of its convex hull, random yaw
 //! and position), seen by a camera at a random elevation (15–80°) and distance (0.5–1.0 m),
-//! optionally with distractors that occlude it and with sensor noise on the depth. Faithful
+//! optionally with distractors that occlude it, a depth sensor's errors and a detector's mask errors. Faithful
 //! geometry, not photorealism. Two variants, as in the paper: `uniform` (one flat colour per
 //! object) and `texture` (model-space colour patches that break the visual symmetry but not
 //! the geometric one).

@@ -3,7 +3,7 @@ use std::collections::BTreeMap;
 use std::path::{Component, Path};
 use std::time::Instant;
 
-use depth_render::{DepthNoise, Material};
+use depth_render::{DepthSensor, MaskErrors, Material};
 use indicatif::ProgressBar;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -56,8 +56,10 @@ pub struct SynthOptions {
     pub view: ViewRange,
     /// Distractor objects per frame.
     pub distractors: usize,
-    /// Depth noise, or clean depth.
-    pub noise: Option<DepthNoise>,
+    /// What the depth camera reads of the scene, or clean depth.
+    pub sensor: Option<DepthSensor>,
+    /// A detector's errors on the visible masks (`mask_visib`), or exact masks.
+    pub mask_errors: Option<MaskErrors>,
     /// Seed of everything random.
     pub seed: u64,
 }
@@ -81,7 +83,7 @@ impl SynthOptions {
 
 impl Default for SynthOptions {
     /// 1,000 frames per object in one scene, uniform colours, [`SynthOptions::t_less_camera`],
-    /// [`ViewRange::default`], no distractors, clean depth, seed 0.
+    /// [`ViewRange::default`], no distractors, clean depth, exact masks, seed 0.
     fn default() -> Self {
         Self {
             frames: 1000,
@@ -90,7 +92,8 @@ impl Default for SynthOptions {
             camera: Self::t_less_camera(),
             view: ViewRange::default(),
             distractors: 0,
-            noise: None,
+            sensor: None,
+            mask_errors: None,
             seed: 0,
         }
     }
@@ -125,7 +128,7 @@ fn dataset_info(objects: &[SynthObject], options: &SynthOptions) -> DatasetInfo 
 pub const SYNTH_OPTIONS_FILE: &str = "synth_options.json";
 
 /// `synth_options.json`: everything that decides a split's scenes and frames (object ids and
-/// sizes, frames, scene layout, seed, camera, views, distractors, noise), so that a rerun with
+/// sizes, frames, scene layout, seed, camera, views, distractors, sensor, mask errors), so that a rerun with
 /// other options is refused rather than completed into a mixture. Numbers pass through JSON text
 /// once, so that they compare equal to what a file read back holds.
 fn split_options(objects: &[SynthObject], options: &SynthOptions) -> Value {
@@ -139,14 +142,6 @@ fn split_options(objects: &[SynthObject], options: &SynthOptions) -> Value {
         })
         .collect();
     let camera = &options.camera;
-    let noise = options.noise.map(|noise| {
-        json!({
-            "sigma_base": noise.sigma_base, "sigma_growth": noise.sigma_growth,
-            "sigma_reference_depth": noise.sigma_reference_depth,
-            "quantisation": noise.quantisation, "edge_threshold": noise.edge_threshold,
-            "edge_dropout": noise.edge_dropout,
-        })
-    });
     let value = json!({
         "generator": "ipdf synth",
         "objects": objects,
@@ -163,7 +158,8 @@ fn split_options(objects: &[SynthObject], options: &SynthOptions) -> Value {
         "distance": [options.view.distance.0, options.view.distance.1],
         "table_offset": options.view.table_offset,
         "distractors": options.distractors,
-        "noise": noise,
+        "sensor": options.sensor,
+        "mask_errors": options.mask_errors,
     });
     as_recorded(value)
 }
@@ -264,7 +260,8 @@ pub fn synthesize(
         let style = FrameStyle {
             material,
             distractors: options.distractors,
-            noise: options.noise,
+            sensor: options.sensor,
+            mask_errors: options.mask_errors,
         };
         for chunk in 0..scenes_per_object {
             let scene_id = (k * scenes_per_object + chunk) as u32;

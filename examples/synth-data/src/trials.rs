@@ -2,7 +2,7 @@
 //! noisy partial views with their true poses. The data of `benches/benches/registration.rs`,
 //! the `registration_trials` example and `benches/python/open3d_registration.py`.
 use depth_render::{
-    DepthNoise, Instance, PinholeCamera, Scene, TriangleMesh, Window, sample_surface, unproject,
+    DepthSensor, Instance, PinholeCamera, Scene, TriangleMesh, Window, sample_surface, unproject,
 };
 use nalgebra::{Isometry3, Point3, Translation3, Vector3};
 use rand::{RngExt, SeedableRng};
@@ -47,7 +47,8 @@ pub struct RegistrationTrial {
 }
 
 /// `count` views of `mesh` by a 640 × 480 camera (f = 600 px): uniformly random rotations,
-/// the object 0.6–0.8 m away and up to 5 cm off the optical axis, Kinect-like depth noise.
+/// the object 0.6–0.8 m away and up to 5 cm off the optical axis, read by
+/// [`DepthSensor::kinect`].
 pub fn registration_trials(
     mesh: &TriangleMesh,
     count: usize,
@@ -66,11 +67,7 @@ pub fn registration_trials(
             let truth = Isometry3::from_parts(translation, rotation);
             let window = Window::full(&camera);
             let rendering = scene.render(&camera, &[Instance::new(0, truth)], window)?;
-            let noisy = DepthNoise::default().apply(
-                &rendering.depth,
-                window.width() as usize,
-                seed ^ i as u64,
-            );
+            let noisy = DepthSensor::kinect().apply(&rendering.depth, &camera, seed ^ i as u64);
             let view = PointCloud::new(unproject(&camera, window, &noisy, None))?;
             Ok(RegistrationTrial { view, truth })
         })

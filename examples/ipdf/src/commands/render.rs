@@ -3,10 +3,11 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use super::choice::choice;
 use super::{check_extension, warn_repairs};
 use anyhow::{Context, Result, bail};
 use depth_render::{
-    DepthNoise, Instance, Lighting, Material, Scene, Window, check_mesh_size, load_mesh,
+    Instance, Lighting, Material, Scene, SensorPreset, Window, check_mesh_size, load_mesh,
 };
 use serde_json::json;
 
@@ -50,9 +51,11 @@ pub struct RenderArgs {
     /// Colouring of the RGB image.
     #[arg(long, value_enum, default_value = "uniform")]
     pub texture: Texture,
-    /// Add Kinect-like depth noise (Gaussian growing with depth, 1 mm steps, edge dropout).
-    #[arg(long)]
-    pub noise: bool,
+    /// Write what this depth sensor reads instead of clean depth: axial and lateral noise,
+    /// quantisation, shadows, dropped pixels, a 1 px misregistration (see
+    /// `depth_render::DepthSensor`).
+    #[arg(long, value_parser = choice::<SensorPreset>())]
+    pub sensor: Option<SensorPreset>,
 }
 
 /// Runs `ipdf render`; returns `{"width", "height", "pixels", "bbox", "depth_min_m",
@@ -87,8 +90,8 @@ pub fn run(args: &RenderArgs, seed: u64) -> Result<serde_json::Value> {
     let render_ms = start.elapsed().as_secs_f64() * 1e3;
     let (width, height) = (camera.width, camera.height);
     let noisy;
-    let depth = if args.noise {
-        noisy = DepthNoise::default().apply(&rendering.depth, width as usize, seed);
+    let depth = if let Some(sensor) = args.sensor {
+        noisy = sensor.sensor().apply(&rendering.depth, &camera, seed);
         &noisy
     } else {
         &rendering.depth
@@ -111,7 +114,7 @@ pub fn run(args: &RenderArgs, seed: u64) -> Result<serde_json::Value> {
         bop_dataset::write_mask(path, &mask, width, height)?;
     }
     let bbox = bop_dataset::mask_box(&mask, width as usize);
-    // The depth written: with --noise, its noisy values and its dropped pixels.
+    // The depth written: with --sensor, what the sensor reads, its dropped pixels excluded.
     let depths = depth
         .iter()
         .zip(&mask)

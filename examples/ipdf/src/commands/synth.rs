@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::{Result, bail};
 use bop_dataset::BopDataset;
 use bop_dataset::{camera_from_json, read_json};
-use depth_render::{DepthNoise, check_mesh_size};
+use depth_render::{MaskErrors, SensorPreset, check_mesh_size};
 use ipdf::progress::bar;
 use serde_json::json;
 use synth_data::{ObjectKind, SynthObject, SynthOptions, Variant, ViewRange, synthesize};
@@ -48,9 +48,15 @@ pub struct SynthArgs {
     /// Distractor objects per frame (occluders, not annotated).
     #[arg(long, default_value_t = 0)]
     pub distractors: usize,
-    /// Add Kinect-like depth noise.
-    #[arg(long)]
-    pub noise: bool,
+    /// Write what this depth sensor reads instead of clean depth: axial and lateral noise,
+    /// quantisation, shadows, dropped pixels, a 1 px misregistration (see
+    /// `depth_render::DepthSensor`).
+    #[arg(long, value_parser = choice::<SensorPreset>())]
+    pub sensor: Option<SensorPreset>,
+    /// Give the visible masks (`mask_visib`) a detector's errors: grown or shrunk by up to this
+    /// many pixels, a fifth of the boundary pixels flipped (0: exact masks).
+    #[arg(long, default_value_t = 0)]
+    pub mask_errors: u32,
     /// Camera JSON (`cam_K` or `fx fy cx cy`, `width`, `height`, `depth_scale`); default a
     /// 640 × 480 camera with T-LESS's focal lengths and 0.1 mm depth units.
     #[arg(long)]
@@ -105,7 +111,11 @@ pub fn run(args: &SynthArgs, seed: u64) -> Result<serde_json::Value> {
             ..ViewRange::default()
         },
         distractors: args.distractors,
-        noise: args.noise.then(DepthNoise::default),
+        sensor: args.sensor.map(SensorPreset::sensor),
+        mask_errors: (args.mask_errors > 0).then(|| MaskErrors {
+            max_shift_px: args.mask_errors,
+            ..MaskErrors::default()
+        }),
         seed,
     };
     let dataset = BopDataset::new(&args.out);
