@@ -31,22 +31,29 @@ pub fn unproject(
         .collect()
 }
 
-/// The render-and-compare discrepancy (metres; 0 is a perfect match) of two depth maps of the
-/// same window, robust to sensor noise and to occluders:
+/// The render-and-compare discrepancy of two depth maps of the same window, in units of the
+/// sensor's expected error, robust to sensor noise, holes and occluders:
 ///
-/// `S = (1/|V|) · Σ_{p ∈ V} e(p)`, with `V` the pixels valid (depth > 0) in *either* map,
-/// `e(p) = min(|observed − rendered|, clamp)` where both are valid, and `e(p) = clamp` where only
-/// one is (a silhouette mismatch costs as much as a gross depth error). `None` when no pixel is
-/// valid in either map. A typical `clamp` is 1–2 cm: beyond the sensor noise, below the
-/// object's size. Cost: one pass over the window, no allocation.
-pub fn depth_discrepancy(observed: &[f32], rendered: &[f32], clamp: f32) -> Option<f32> {
+/// `S = (1/|V|) · Σ_{p ∈ V} e(p)`, with `e(p) = min(|observed − rendered| / sigma, cap)` where
+/// both maps read a depth (> 0), `e(p) = cap` where only the observed one does (depth that the
+/// pose does not explain), and `V` those pixels: where only the rendered map reads, the sensor
+/// left a hole (a shadow, an edge, a surface too oblique, dropout), which is no evidence either
+/// way. `sigma` is each pixel's expected error (for example
+/// [`crate::DepthSensor::expected_errors`]); a typical `cap` is 3. `None` when no pixel is
+/// compared. On Gaussian noise the true depth scores E[min(|N(0, 1)|, cap)] ≈ 0.80 at cap 3.
+pub fn depth_discrepancy(
+    observed: &[f32],
+    rendered: &[f32],
+    sigma: &[f32],
+    cap: f32,
+) -> Option<f32> {
     let (mut total, mut count) = (0.0f64, 0u64);
-    for (&o, &r) in observed.iter().zip(rendered) {
+    for ((&o, &r), &s) in observed.iter().zip(rendered).zip(sigma) {
         let (o_valid, r_valid) = (o > 0.0 && o.is_finite(), r > 0.0 && r.is_finite());
         let error = match (o_valid, r_valid) {
-            (true, true) => (o - r).abs().min(clamp),
-            (false, false) => continue,
-            _ => clamp,
+            (true, true) => ((o - r).abs() / s.max(f32::MIN_POSITIVE)).min(cap),
+            (true, false) => cap,
+            (false, _) => continue,
         };
         total += f64::from(error);
         count += 1;
@@ -60,16 +67,14 @@ mod tests {
 
     #[test]
     fn discrepancy_follows_its_formula() {
-        let clamp = 0.01;
-        assert_eq!(depth_discrepancy(&[0.0, 0.0], &[0.0, 0.0], clamp), None);
-        assert_eq!(
-            depth_discrepancy(&[0.5, 0.6], &[0.5, 0.6], clamp),
-            Some(0.0)
-        );
-        let shifted = depth_discrepancy(&[0.5, 0.6], &[0.501, 0.601], clamp).unwrap();
-        assert!((shifted - 0.001).abs() < 1e-6);
-        // A pixel valid in one map only costs the clamp; far errors are clamped.
-        let mixed = depth_discrepancy(&[0.5, 0.0, 0.5], &[0.5, 0.7, 0.9], clamp).unwrap();
-        assert!((mixed - 2.0 * clamp / 3.0).abs() < 1e-7);
+        let (sigma, cap) = ([0.001; 3], 3.0);
+        let shifted = depth_discrepancy(&[0.5, 0.6], &[0.501, 0.6015], &sigma, cap).unwrap();
+        assert!((shifted - 1.25).abs() < 1e-3, "{shifted}");
+        // Far errors are capped, a depth not explained costs the cap, a hole nothing.
+        let mixed = depth_discrepancy(&[0.5, 0.5, 0.0], &[0.6, 0.0, 0.5], &sigma, cap).unwrap();
+        assert!((mixed - cap).abs() < 1e-6);
+        // Each pixel in its own σ.
+        let scaled = depth_discrepancy(&[0.5, 0.5], &[0.502, 0.502], &[0.001, 0.004], cap);
+        assert!((scaled.unwrap() - 1.25).abs() < 1e-3);
     }
 }

@@ -222,6 +222,60 @@ impl DepthSensor {
         (self.sigma(z).powi(2) + self.step(z).powi(2) / 12.0).sqrt()
     }
 
+    /// The standard deviation (m) of the difference between a reading and the true depth `z` of
+    /// a surface whose depth changes by `slope` metres per pixel of a camera of focal length
+    /// `focal` pixels: the axial noise at the incidence that the slope implies, the
+    /// quantisation, and the lateral noise times the slope. The yardstick of
+    /// [`crate::depth_discrepancy`].
+    pub fn expected_error(&self, z: f32, slope: f32, focal: f32) -> f32 {
+        let z = z.max(1e-3);
+        let incidence = (slope * focal / z).atan();
+        let lateral = self.lateral_sigma_px * focal / self.focal_px.max(1e-6) * slope;
+        (self.sigma_at_incidence(z, incidence).powi(2)
+            + self.step(z).powi(2) / 12.0
+            + lateral * lateral)
+            .sqrt()
+    }
+
+    /// [`DepthSensor::expected_error`] at each pixel of the clean, row-major depth map
+    /// `rendered` (`width` columns) of a camera of focal length `focal` pixels, its slopes from
+    /// central differences over neighbours on the same surface (within `edge_step`), one-sided
+    /// where only one is; 0 where nothing is rendered.
+    pub fn expected_errors(&self, rendered: &[f32], width: usize, focal: f32) -> Vec<f32> {
+        let width = width.max(1);
+        let rows = rendered.len() / width;
+        let at = |u: usize, v: usize| rendered[v * width + u];
+        let mut out = vec![0.0f32; rendered.len()];
+        for v in 0..rows {
+            for u in 0..width {
+                let z = at(u, v);
+                if z <= 0.0 {
+                    continue;
+                }
+                let same = |d: f32| Image::continuous(z, d, self.edge_step);
+                let derivative = |before: Option<f32>, after: Option<f32>| match (
+                    before.filter(|&d| same(d)),
+                    after.filter(|&d| same(d)),
+                ) {
+                    (Some(b), Some(a)) => 0.5 * (a - b),
+                    (Some(b), None) => z - b,
+                    (None, Some(a)) => a - z,
+                    (None, None) => 0.0,
+                };
+                let du = derivative(
+                    u.checked_sub(1).map(|x| at(x, v)),
+                    (u + 1 < width).then(|| at(u + 1, v)),
+                );
+                let dv = derivative(
+                    v.checked_sub(1).map(|y| at(u, y)),
+                    (v + 1 < rows).then(|| at(u, v + 1)),
+                );
+                out[v * width + u] = self.expected_error(z, du.hypot(dv), focal);
+            }
+        }
+        out
+    }
+
     /// What the sensor reads of the clean, row-major z-depth image `depth` (m, 0: nothing) of
     /// `camera`, in the colour camera's pixels (see the type's docs). Deterministic for a seed
     /// at any thread count: row `r` draws from ChaCha8 stream `r`. A `depth` shorter than the

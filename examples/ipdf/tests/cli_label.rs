@@ -57,15 +57,34 @@ fn paper_label_maad(object: &str) -> f64 {
 
 #[test]
 fn labels_recover_the_symmetry_sets_of_a_can_and_a_box() {
-    for (name, extra) in [
-        ("clean", &[][..]),
-        ("noisy, occluded", &["--noise", "--distractors", "2"][..]),
+    // Clean renders, and each sensor preset with distractors and a detector's masks.
+    let occluded = ["--distractors", "2", "--mask-errors", "1", "--sensor"];
+    for (name, extra, sensor) in [
+        ("clean", &[][..], "kinect"),
+        (
+            "kinect, occluded",
+            &[&occluded[..], &["kinect"]].concat()[..],
+            "kinect",
+        ),
+        (
+            "realsense, occluded",
+            &[&occluded[..], &["realsense"]].concat()[..],
+            "realsense",
+        ),
     ] {
         let dir = tempfile::tempdir().unwrap();
         let made = synth(dir.path(), "can,box", 6, extra);
         assert_eq!(made["frames"], 12);
         let report = dir.path().join("report.json");
-        let run = ipdf_json(&["label", "--dataset", s(dir.path()), "--report", s(&report)]);
+        let run = ipdf_json(&[
+            "label",
+            "--dataset",
+            s(dir.path()),
+            "--sensor",
+            sensor,
+            "--report",
+            s(&report),
+        ]);
         assert_eq!(run["instances"], 12, "{name}: {run}");
         let scores: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
         assert!(report.with_extension("md").exists());
@@ -76,6 +95,7 @@ fn labels_recover_the_symmetry_sets_of_a_can_and_a_box() {
             let labelled = entry["labelled"].as_u64().unwrap();
             println!("{name} {object}: {entry}");
             assert!(labelled >= 5, "{name} {object}: {entry}");
+            assert_eq!(entry["off_instances"], 0, "{name} {object}: {entry}");
             assert!(maad < paper_label_maad(object), "{name} {object}: {entry}");
             assert!(coverage >= 0.9, "{name} {object}: {entry}");
         }
@@ -311,15 +331,7 @@ fn an_instance_no_pose_explains_keeps_its_best_pose_for_inspection() {
     let dir = tempfile::tempdir().unwrap();
     synth(dir.path(), "box", 2, &[]);
     // A threshold no pose can meet: every instance fails, each with its best pose.
-    let run = ipdf_json(&[
-        "label",
-        "--dataset",
-        s(dir.path()),
-        "--max-score",
-        "1e-6",
-        "--score-floor",
-        "0",
-    ]);
+    let run = ipdf_json(&["label", "--dataset", s(dir.path()), "--max-score", "1e-6"]);
     assert_eq!(
         (&run["labelled"], &run["failures"]["no pose accepted"]),
         (&0.into(), &2.into())
@@ -344,8 +356,9 @@ fn an_instance_no_pose_explains_keeps_its_best_pose_for_inspection() {
         let best = &instance["best"];
         assert_eq!(best["cam_R_m2c"].as_array().unwrap().len(), 9, "{instance}");
         assert_eq!(best["cam_t_m2c"].as_array().unwrap().len(), 3);
-        // A good pose, only not good enough for the impossible threshold: millimetres.
+        // A good pose, only not good enough for the impossible threshold: a small fraction of
+        // the sensor's expected error on clean depth.
         let score = best["score"].as_f64().unwrap();
-        assert!(score > 1e-6 && score < 0.005, "{instance}");
+        assert!(score > 1e-6 && score < 0.3, "{instance}");
     }
 }

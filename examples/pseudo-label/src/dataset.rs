@@ -12,6 +12,8 @@ use bop_dataset::{
     write_pseudo_gt,
 };
 
+use depth_render::SensorPreset;
+
 use crate::instance::{LabelFailure, label_instance};
 use crate::{LabelError, ObjectModel, Observation, PixelLattice};
 
@@ -45,8 +47,8 @@ impl Strategy {
 pub struct LabelOptions {
     /// K: at most this many labels per instance.
     pub labels: usize,
-    /// M: global-alignment trials per label: fewer once one scores below half the threshold,
-    /// up to 3M while none is below the threshold.
+    /// M: global-alignment trials per label: fewer once one scores below `good_score`, up to
+    /// 3M while none is accepted.
     pub trials: usize,
     /// How labels after the first are found.
     pub strategy: Strategy,
@@ -54,13 +56,20 @@ pub struct LabelOptions {
     pub voxel_fraction: f64,
     /// Surface samples of the model before downsampling.
     pub model_points: usize,
-    /// Per-pixel error cap of the render-and-compare score, as a fraction of the diameter.
-    pub score_clamp: f64,
-    /// Labels scoring above this fraction of the diameter are dropped…
+    /// The depth sensor whose expected error at each pixel is the unit of the render-and-compare
+    /// score ([`crate::render_and_compare`]).
+    pub sensor: SensorPreset,
+    /// Per-pixel residuals are capped at this many expected errors (and a depth the pose does
+    /// not explain costs as much).
+    pub outlier_sigmas: f64,
+    /// No pose scoring above this is a label: the true pose scores about 0.8 on the sensor's
+    /// noise alone.
     pub max_score: f64,
-    /// …unless they score below this many metres (the sensor's noise alone scores about
-    /// 1.5 mm on a Kinect-like camera, whatever the object's size).
-    pub score_floor: f64,
+    /// Poses scoring more than this above the best are dropped: what depth tells apart from
+    /// the best pose is not a symmetry of it.
+    pub score_margin: f64,
+    /// A trial scoring below this stops the search for the first label early.
+    pub good_score: f64,
     /// Labels closer than this (degrees) to a better one are merged into it.
     pub merge_angle_deg: f64,
     /// At most this many self-symmetries are used for re-seeding, spread evenly.
@@ -76,8 +85,9 @@ pub struct LabelOptions {
 
 impl Default for LabelOptions {
     /// K = 8 labels, M = 3 trials, re-seeding, voxel 1/40 of the diameter, 20,000 model
-    /// samples, score clamp 10% and threshold 1.5% of the diameter but at least 3 mm, merge
-    /// within 2°, 32 symmetries, every other pixel, seed 0.
+    /// samples, a Kinect's expected error as the unit, residuals capped at 3, labels scoring
+    /// under 1.3 and within 0.1 of the best, early stop under 0.9, merge within 2°, 32
+    /// symmetries, every other pixel, seed 0.
     fn default() -> Self {
         Self {
             labels: 8,
@@ -85,9 +95,11 @@ impl Default for LabelOptions {
             strategy: Strategy::Reseed,
             voxel_fraction: 0.025,
             model_points: 20_000,
-            score_clamp: 0.1,
-            max_score: 0.015,
-            score_floor: 0.003,
+            sensor: SensorPreset::Kinect,
+            outlier_sigmas: 3.0,
+            max_score: 1.3,
+            score_margin: 0.1,
+            good_score: 0.9,
             merge_angle_deg: 2.0,
             max_symmetries: 32,
             pixel_stride: 2,
@@ -97,9 +109,17 @@ impl Default for LabelOptions {
 }
 
 impl LabelOptions {
-    /// The score (metres) above which a pose is dropped, for an object of `diameter` metres.
-    pub fn threshold(&self, diameter: f64) -> f64 {
-        (self.max_score * diameter).max(self.score_floor)
+    /// These options for depth `ratio` times as noisy as the sensor's ([`crate::noise_ratio`]):
+    /// `max_score` and `good_score` move with the true pose's expected score, 0.8 · ratio
+    /// (E|N(0, ratio²)| in expected errors), so that a wrong pose is not accepted on depth
+    /// cleaner than the sensor's (clean renders).
+    pub fn for_noise(&self, ratio: f64) -> Self {
+        let shift = 0.8 * (ratio - 1.0);
+        Self {
+            max_score: self.max_score + shift,
+            good_score: self.good_score + shift,
+            ..self.clone()
+        }
     }
 
     fn validate(&self) -> Result<(), LabelError> {
@@ -114,10 +134,11 @@ impl LabelOptions {
             }
         };
         positive("voxel_fraction", self.voxel_fraction)?;
-        positive("score_clamp", self.score_clamp)?;
+        positive("outlier_sigmas", self.outlier_sigmas)?;
         positive("max_score", self.max_score)?;
-        if !(self.score_floor.is_finite() && self.score_floor >= 0.0) {
-            return Err(LabelError::option("score_floor", "must be at least 0"));
+        positive("good_score", self.good_score)?;
+        if !(self.score_margin.is_finite() && self.score_margin >= 0.0) {
+            return Err(LabelError::option("score_margin", "must be at least 0"));
         }
         if !(self.merge_angle_deg.is_finite() && self.merge_angle_deg >= 0.0) {
             return Err(LabelError::option("merge_angle", "must be at least 0"));
@@ -490,10 +511,10 @@ fn label_image(
             };
             let best = match found.labels {
                 Err(LabelFailure::NoPoseAccepted {
-                    best_mm, best_pose, ..
-                }) if best_mm.is_finite() => Some(PseudoLabel {
+                    best, best_pose, ..
+                }) if best.is_finite() => Some(PseudoLabel {
                     pose: best_pose,
-                    score: best_mm * 1e-3,
+                    score: best,
                 }),
                 _ => None,
             };

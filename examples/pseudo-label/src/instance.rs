@@ -3,7 +3,7 @@
 //! render-and-compare score; the best of several trials is the first label, and the others come
 //! from re-seeding ICP at its symmetric counterparts (or, with [`Strategy::Trials`], from more
 //! independent trials, as in the paper).
-use depth_render::{Window, unproject};
+use depth_render::{DepthSensor, Window, unproject};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -68,14 +68,15 @@ pub enum LabelFailure {
     Registration(String),
     /// Every pose found scored worse than the threshold.
     #[error(
-        "no pose explains the depth: best score {best_mm:.2} mm, threshold {threshold_mm:.2} mm"
+        "no pose explains the depth: best score {best:.2}, threshold {threshold:.2} (in the \
+         sensor's expected errors)"
     )]
     NoPoseAccepted {
-        /// The best score (mm).
-        best_mm: f64,
-        /// The threshold (mm).
-        threshold_mm: f64,
-        /// The pose that scored `best_mm` (model→camera), kept for inspection.
+        /// The best score.
+        best: f64,
+        /// The threshold.
+        threshold: f64,
+        /// The pose that scored `best` (model→camera), kept for inspection.
         best_pose: Isometry3<f64>,
     },
     /// The observed cloud and the model differ in size by more than a wrong mask explains.
@@ -297,21 +298,28 @@ pub fn refine_pose(
     .map(|alignment| alignment.pose.inverse())
 }
 
-/// Stage 5: the render-and-compare score of `pose` (metres; `options.score_clamp` of the
-/// diameter caps each pixel's error), or infinity when nothing can be compared.
+/// Stage 5: the render-and-compare score of `pose` (in `options.sensor`'s expected errors,
+/// capped at `options.outlier_sigmas`), or infinity when nothing can be compared.
 pub fn score_pose(
     model: &ObjectModel,
     observation: &Observation,
     pose: &Isometry3<f64>,
     options: &LabelOptions,
 ) -> f64 {
-    let clamp = (options.score_clamp * model.diameter) as f32;
-    render_and_compare(&model.scene, observation, pose, clamp).map_or(f64::INFINITY, f64::from)
+    let sensor = options.sensor.sensor();
+    render_and_compare(
+        &model.scene,
+        observation,
+        pose,
+        &sensor,
+        options.outlier_sigmas as f32,
+    )
+    .map_or(f64::INFINITY, f64::from)
 }
 
 /// One full trial from the random initial pose P0 of `index`: ICP from P0 itself (cheap,
 /// and right whenever P0 lies in the basin of a symmetric pose), then, unless that scores
-/// below half the threshold, FGR from P0 and refinement; the better of the two.
+/// below `options.good_score`, FGR from P0 and refinement; the better of the two.
 fn trial(
     model: &ObjectModel,
     view: &PreparedCloud,
@@ -320,12 +328,11 @@ fn trial(
     seed: u64,
     index: u64,
 ) -> Result<Scored, LabelFailure> {
-    let threshold = options.threshold(model.diameter);
     let initial = initial_pose(model, view, seed, index);
     let local = align_from(model, view, &initial)
         .map(|pose| (pose, score_pose(model, observation, &pose, options)));
     if let Some(found) = local
-        && found.1 < 0.5 * threshold
+        && found.1 < options.good_score
     {
         return Ok(found);
     }
@@ -340,9 +347,9 @@ fn trial(
     }
 }
 
-/// The best of `count` trials (trial indices from `first`): stops early at a score below half
-/// the threshold (a wrong pose can score just under it, a right one well under it), and goes
-/// on up to `3 · count` trials while none is accepted.
+/// The best of `count` trials (trial indices from `first`): stops early at a score below
+/// `options.good_score` (a wrong pose can score under the threshold, a right one scores about
+/// 0.8), and goes on up to `3 · count` trials while none is that good.
 fn best_of_trials(
     model: &ObjectModel,
     view: &PreparedCloud,
@@ -352,11 +359,10 @@ fn best_of_trials(
     first: u64,
     count: usize,
 ) -> Result<Scored, LabelFailure> {
-    let threshold = options.threshold(model.diameter);
     let mut best: Option<Scored> = None;
     let mut failure = None;
     for index in first..first + 3 * count as u64 {
-        if index >= first + count as u64 && best.is_some_and(|b| b.1 <= threshold) {
+        if index >= first + count as u64 && best.is_some_and(|b| b.1 <= options.good_score) {
             break;
         }
         match trial(model, view, observation, options, seed, index) {
@@ -364,7 +370,7 @@ fn best_of_trials(
                 if best.is_none_or(|b| found.1 < b.1) {
                     best = Some(found);
                 }
-                if found.1 < 0.5 * threshold {
+                if found.1 < options.good_score {
                     break;
                 }
             }
@@ -394,10 +400,38 @@ pub fn label_instance(
             };
         }
     };
+    let options = options.for_noise(noise_ratio(observation, &options.sensor.sensor()));
     InstanceLabels {
         warning: extent_warning(&view.cloud, model.diameter),
-        labels: pose_set(model, &view, observation, options, seed),
+        labels: pose_set(model, &view, observation, &options, seed),
     }
+}
+
+/// How noisy the observed depth is, as a multiple of what `sensor` leads to expect (1 for its
+/// own readings, about 0 for clean renders), from 0 to 1: the median of the masked depth's
+/// horizontal second differences (zero on a plane up to its curvature, √6 σ of noise otherwise;
+/// the median ignores edges), each over the sensor's expected error there. 1 when fewer than 30
+/// pixels have both neighbours in the mask. Depth noisier than the sensor's is not forgiven
+/// (lateral noise on slanted faces inflates the estimate, and wrong poses would pass): choose
+/// the sensor that took it.
+pub fn noise_ratio(observation: &Observation, sensor: &DepthSensor) -> f64 {
+    let width = observation.camera.width as usize;
+    let (depth, mask) = (observation.depth, observation.mask);
+    let mut ratios: Vec<f32> = (1..depth.len().saturating_sub(1))
+        .filter(|&i| i % width != 0 && i % width != width - 1)
+        .filter(|&i| (i - 1..=i + 1).all(|j| mask[j] && depth[j] > 0.0))
+        .map(|i| {
+            let second = depth[i - 1] - 2.0 * depth[i] + depth[i + 1];
+            second.abs() / sensor.reading_sigma(depth[i])
+        })
+        .collect();
+    if ratios.len() < 30 {
+        return 1.0;
+    }
+    let middle = ratios.len() / 2;
+    let median = *ratios.select_nth_unstable_by(middle, f32::total_cmp).1;
+    // The median of |N(0, 6σ²)| is 0.6745·√6·σ.
+    (f64::from(median) / (0.6745 * 6f64.sqrt())).clamp(0.0, 1.0)
 }
 
 /// Stages 3–5 and the choice of labels, for the observed cloud `view`.
@@ -408,7 +442,7 @@ fn pose_set(
     options: &LabelOptions,
     seed: u64,
 ) -> Result<Vec<PseudoLabel>, LabelFailure> {
-    let threshold = options.threshold(model.diameter);
+    let threshold = options.max_score;
     let mut candidates: Vec<Scored> = match options.strategy {
         Strategy::Reseed => {
             let best = best_of_trials(model, view, observation, options, seed, 0, options.trials)?;
@@ -448,12 +482,13 @@ fn pose_set(
     };
     candidates.sort_by(|a, b| a.1.total_cmp(&b.1));
     let best = candidates.first().copied();
-    candidates.retain(|c| c.1 <= threshold);
+    let best_score = best.map_or(f64::INFINITY, |b| b.1);
+    candidates.retain(|c| c.1 <= threshold.min(best_score + options.score_margin));
     if candidates.is_empty() {
         let (best_pose, best_score) = best.unwrap_or((Isometry3::identity(), f64::INFINITY));
         return Err(LabelFailure::NoPoseAccepted {
-            best_mm: best_score * 1e3,
-            threshold_mm: threshold * 1e3,
+            best: best_score,
+            threshold,
             best_pose,
         });
     }

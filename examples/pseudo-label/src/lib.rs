@@ -58,7 +58,7 @@ pub use dataset::{
 pub use error::LabelError;
 pub use instance::{
     InstanceLabels, LabelFailure, align_from, extent_warning, global_alignment, initial_pose,
-    label_instance, observed_cloud, observed_features, refine_pose, score_pose,
+    label_instance, noise_ratio, observed_cloud, observed_features, refine_pose, score_pose,
 };
 pub use model::ObjectModel;
 pub use report::{COVERAGE_ANGLE_DEG, LabelReport, ObjectLabelScores, report};

@@ -27,6 +27,15 @@ pub struct ObjectLabelScores {
     pub instances: usize,
     /// Of those, instances with at least one label.
     pub labelled: usize,
+    /// `labelled / instances`.
+    pub labelled_fraction: f64,
+    /// Labelled instances with a label farther than 5° from every ground-truth symmetric
+    /// rotation: a near-symmetry or a wrong pose taken for a symmetry.
+    pub off_instances: usize,
+    /// The 5th, 25th, 50th, 75th and 95th percentiles of the labelled instances' best scores.
+    pub scores: Option<[f64; 5]>,
+    /// The same of the unlabelled instances' best poses (those that have one).
+    pub rejected_scores: Option<[f64; 5]>,
     /// Labels scored.
     pub labels: usize,
     /// Mean over labels of the angle to the nearest ground-truth symmetric rotation (degrees).
@@ -42,8 +51,8 @@ pub struct ObjectLabelScores {
 }
 
 /// The scores of a split's labels: `labels.json` of `ipdf label --report`, `{"variant",
-/// "objects": {name: {"obj_id", "instances", "labelled", "labels", "label_maad_deg",
-/// "coverage"}}}`.
+/// "objects": {name: {"obj_id", "instances", "labelled", "labelled_fraction", "off_instances",
+/// "scores", "rejected_scores", "labels", "label_maad_deg", "coverage"}}}`.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct LabelReport {
     /// The dataset variant (`dataset_info.json`) or its folder's name.
@@ -67,21 +76,32 @@ impl LabelReport {
         let mut text = format!(
             "Pseudo-label accuracy ({}): label MAAD = mean angle from a label to the nearest \
              ground-truth symmetric pose; coverage = symmetry classes within {COVERAGE_ANGLE_DEG}° \
-             of a label.\n\n| object | instances | labelled | labels | label MAAD (°) | coverage |\n\
-             |---|---|---|---|---|---|\n",
+             of a label; off = labelled instances with a label farther than \
+             {COVERAGE_ANGLE_DEG}° from every symmetric pose; scores = median (5th–95th \
+             percentile) of the best score, in the sensor's expected errors.\n\n\
+             | object | instances | labelled | labels | label MAAD (°) | coverage | off | \
+             scores, labelled | scores, unlabelled |\n|---|---|---|---|---|---|---|---|---|\n",
             self.variant
         );
         let mut rows: Vec<_> = self.objects.iter().collect();
         rows.sort_by_key(|(_, s)| s.obj_id);
         for (name, s) in rows {
+            let spread = |p: &Option<[f64; 5]>| match p {
+                Some(p) => format!("{:.2} ({:.2}–{:.2})", p[2], p[0], p[4]),
+                None => "–".into(),
+            };
             text += &format!(
-                "| {} | {} | {} | {} | {:.2} | {:.1}% |\n",
+                "| {} | {} | {} ({:.1}%) | {} | {:.2} | {:.1}% | {} | {} | {} |\n",
                 name,
                 s.instances,
                 s.labelled,
+                100.0 * s.labelled_fraction,
                 s.labels,
                 s.label_maad_deg,
-                100.0 * s.coverage
+                100.0 * s.coverage,
+                s.off_instances,
+                spread(&s.scores),
+                spread(&s.rejected_scores),
             );
         }
         text
@@ -98,6 +118,7 @@ pub fn report(
 ) -> Result<LabelReport, LabelError> {
     let models = read_models_info(&dataset.models_info_path())?;
     let mut sums: BTreeMap<u32, (ObjectLabelScores, f64, f64)> = BTreeMap::new();
+    let mut best_scores: BTreeMap<u32, (Vec<f64>, Vec<f64>)> = BTreeMap::new();
     for scene_id in dataset.scene_ids(split)? {
         let scene = dataset.scene(split, scene_id);
         if !scene.pseudo_gt_path().exists() || !scene.gt_path().exists() {
@@ -130,6 +151,12 @@ pub fn report(
                     (scores, 0.0, 0.0)
                 });
                 entry.0.instances += 1;
+                let (accepted, rejected) = best_scores.entry(truth.obj_id).or_default();
+                match (instance.labels.first(), &instance.best) {
+                    (Some(label), _) => accepted.push(label.score),
+                    (None, Some(best)) => rejected.push(best.score),
+                    (None, None) => {}
+                }
                 if instance.labels.is_empty() {
                     continue;
                 }
@@ -140,11 +167,13 @@ pub fn report(
                     .iter()
                     .map(|label| group.class_distances(&truth.pose.rotation, &label.pose.rotation))
                     .collect();
+                let mut off = false;
                 for per_class in &distances {
                     let error = per_class
                         .iter()
                         .fold(f64::INFINITY, |a, &b| a.min(b))
                         .to_degrees();
+                    off |= error > COVERAGE_ANGLE_DEG;
                     entry.1 += error;
                     entry.0.errors_deg.push(error);
                     entry.0.labels += 1;
@@ -158,6 +187,7 @@ pub fn report(
                     })
                     .count();
                 entry.2 += covered as f64 / classes as f64;
+                entry.0.off_instances += usize::from(off);
             }
         }
     }
@@ -166,6 +196,11 @@ pub fn report(
         .map(|(obj_id, (mut scores, maad_sum, coverage_sum))| {
             scores.label_maad_deg = maad_sum / scores.labels.max(1) as f64;
             scores.coverage = coverage_sum / scores.labelled.max(1) as f64;
+            scores.labelled_fraction = scores.labelled as f64 / scores.instances.max(1) as f64;
+            if let Some((accepted, rejected)) = best_scores.remove(&obj_id) {
+                scores.scores = percentiles(accepted);
+                scores.rejected_scores = percentiles(rejected);
+            }
             let name = names
                 .get(&obj_id)
                 .cloned()
@@ -177,4 +212,12 @@ pub fn report(
         variant: variant.to_string(),
         objects,
     })
+}
+
+/// The 5th, 25th, 50th, 75th and 95th percentiles (nearest rank) of `values`; `None` when empty.
+fn percentiles(mut values: Vec<f64>) -> Option<[f64; 5]> {
+    values.retain(|v| v.is_finite());
+    values.sort_by(f64::total_cmp);
+    let last = values.len().checked_sub(1)?;
+    Some([0.05, 0.25, 0.5, 0.75, 0.95].map(|q| values[(q * last as f64).round() as usize]))
 }

@@ -1,6 +1,6 @@
 //! Render-and-compare: how well a pose of the model explains the observed depth inside the
 //! instance's mask, with occluders in front of the object forgiven.
-use depth_render::{Instance, PinholeCamera, Scene, Window, depth_discrepancy};
+use depth_render::{DepthSensor, Instance, PinholeCamera, Scene, Window, depth_discrepancy};
 use nalgebra::Isometry3;
 
 use bop_dataset::mask_box;
@@ -82,16 +82,21 @@ impl PixelLattice {
     }
 }
 
-/// The render-and-compare score (metres, lower is better) of the model (mesh 0 of `scene`) at
-/// model→camera `pose`: [`depth_discrepancy`] over the observation's window between the masked
-/// observed depth and the rendered depth, except that rendered pixels outside the mask behind
-/// an observed surface (nearer by more than `clamp`) are occluded and not compared. `None` when
-/// nothing is observed or rendered in the window.
+/// The render-and-compare score (in units of the sensor's expected error, lower is better;
+/// about 0.8 for the true pose) of the model (mesh 0 of `scene`) at model→camera `pose`:
+/// [`depth_discrepancy`] over the observation's window, each pixel's residual divided by
+/// `sensor`'s [`DepthSensor::expected_error`] for the rendered surface there and capped at
+/// `cap`. Compared are the mask's pixels and the rendered pixels outside the mask: there the
+/// observed depth still counts (the object beyond a tight mask agrees with the pose, the
+/// background behind a pose that overhangs the object does not), except behind an observed
+/// surface nearer by more than `cap` σ (an occluder: no evidence either way). Pixels without a
+/// reading are holes, not evidence. `None` when nothing is compared.
 pub fn render_and_compare(
     scene: &Scene,
     observation: &Observation,
     pose: &Isometry3<f64>,
-    clamp: f32,
+    sensor: &DepthSensor,
+    cap: f32,
 ) -> Option<f32> {
     let rendering = scene
         .render(
@@ -102,26 +107,26 @@ pub fn render_and_compare(
         .ok()?;
     let window = rendering.window;
     let (window_width, image_width) = (window.width() as usize, observation.camera.width as usize);
+    let sigma =
+        sensor.expected_errors(&rendering.depth, window_width, observation.camera.fx as f32);
     let mut observed = Vec::with_capacity(rendering.depth.len());
     let mut rendered = Vec::with_capacity(rendering.depth.len());
-    for (i, &r) in rendering.depth.iter().enumerate() {
+    let mut errors = Vec::with_capacity(rendering.depth.len());
+    for (i, (&r, &s)) in rendering.depth.iter().zip(&sigma).enumerate() {
         let (u, v) = (
             window.u0 as usize + i % window_width,
             window.v0 as usize + i / window_width,
         );
         let pixel = v * image_width + u;
         let depth = observation.depth[pixel];
-        if observation.mask[pixel] {
-            observed.push(depth);
-            rendered.push(r);
-        } else if r > 0.0 && depth > 0.0 && depth < r - clamp {
-            continue; // an occluder in front of the model: no evidence either way
-        } else {
-            observed.push(0.0);
-            rendered.push(r);
+        if !observation.mask[pixel] && (r <= 0.0 || (depth > 0.0 && depth < r - cap * s)) {
+            continue; // the background beside the object, or an occluder in front of the model
         }
+        observed.push(depth);
+        rendered.push(r);
+        errors.push(s);
     }
-    depth_discrepancy(&observed, &rendered, clamp)
+    depth_discrepancy(&observed, &rendered, &errors, cap)
 }
 
 #[cfg(test)]

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use bop_dataset::{BopDataset, DatasetInfo};
+use depth_render::SensorPreset;
 use ipdf::progress::bar;
 use pseudo_label::{DatasetOptions, LabelOptions, Shard, Strategy, label_dataset, report};
 use serde_json::json;
@@ -41,12 +42,16 @@ pub struct LabelArgs {
     /// Voxel size as a fraction of the object's diameter.
     #[arg(long, default_value_t = 0.025)]
     pub voxel_fraction: f64,
-    /// Drop labels whose render-and-compare score exceeds this fraction of the diameter…
-    #[arg(long, default_value_t = 0.015)]
+    /// The depth sensor of the dataset: its expected error at each depth and slope is the unit
+    /// of the render-and-compare score (`kinect` also for PrimeSense Carmine and Xtion).
+    #[arg(long, value_parser = choice::<SensorPreset>(), default_value = "kinect")]
+    pub sensor: SensorPreset,
+    /// Drop poses whose render-and-compare score exceeds this (the true pose scores about 0.8)…
+    #[arg(long, default_value_t = LabelOptions::default().max_score)]
     pub max_score: f64,
-    /// …and this many metres (the sensor noise's own score).
-    #[arg(long, default_value_t = 0.003)]
-    pub score_floor: f64,
+    /// …or the best pose's score by more than this: depth tells them apart from it.
+    #[arg(long, default_value_t = LabelOptions::default().score_margin)]
+    pub score_margin: f64,
     /// Merge labels closer than this many degrees.
     #[arg(long, default_value_t = 2.0)]
     pub merge_angle: f64,
@@ -82,8 +87,9 @@ pub fn run(args: &LabelArgs, seed: u64) -> Result<serde_json::Value> {
         trials: args.trials,
         strategy: args.strategy,
         voxel_fraction: args.voxel_fraction,
+        sensor: args.sensor,
         max_score: args.max_score,
-        score_floor: args.score_floor,
+        score_margin: args.score_margin,
         merge_angle_deg: args.merge_angle,
         pixel_stride: args.pixel_stride,
         seed,
