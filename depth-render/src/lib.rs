@@ -53,6 +53,7 @@ mod mesh;
 mod mesh_io;
 mod mesh_repair;
 mod mesh_scale;
+mod pixel_grid;
 pub mod primitives;
 mod render;
 mod resting;

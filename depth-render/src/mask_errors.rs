@@ -3,6 +3,8 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
+use crate::pixel_grid::{four_neighbours, morph};
+
 /// How far a detector's mask strays from the object's true silhouette: the whole mask grown or
 /// shrunk by a whole number of pixels, then its boundary made ragged.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -41,17 +43,7 @@ impl MaskErrors {
         }
         let rows = out.len() / width;
         let boundary: Vec<bool> = (0..out.len())
-            .map(|i| {
-                let (u, v) = (i % width, i / width);
-                [
-                    (u.wrapping_sub(1), v),
-                    (u + 1, v),
-                    (u, v.wrapping_sub(1)),
-                    (u, v + 1),
-                ]
-                .iter()
-                .any(|&(x, y)| x < width && y < rows && out[y * width + x] != out[i])
-            })
+            .map(|i| four_neighbours(i, width, rows).any(|j| out[j] != out[i]))
             .collect();
         for (pixel, on_boundary) in out.iter_mut().zip(boundary) {
             let draw: f32 = rng.random();
@@ -61,36 +53,4 @@ impl MaskErrors {
         }
         out
     }
-}
-
-/// `mask` dilated (`grow`) or eroded by a (2r + 1)² square; pixels beyond the image count as
-/// outside the mask.
-fn morph(mask: &[bool], width: usize, radius: usize, grow: bool) -> Vec<bool> {
-    if radius == 0 {
-        return mask.to_vec();
-    }
-    let rows = mask.len() / width;
-    let pass = |input: &[bool], horizontal: bool| -> Vec<bool> {
-        (0..input.len())
-            .map(|i| {
-                let (u, v) = (i % width, i / width);
-                let (position, length) = if horizontal { (u, width) } else { (v, rows) };
-                let window = position as i64 - radius as i64..=(position + radius) as i64;
-                let mut values = window.map(|p| {
-                    (0..length as i64).contains(&p)
-                        && if horizontal {
-                            input[v * width + p as usize]
-                        } else {
-                            input[p as usize * width + u]
-                        }
-                });
-                if grow {
-                    values.any(|m| m)
-                } else {
-                    values.all(|m| m)
-                }
-            })
-            .collect()
-    };
-    pass(&pass(&mask[..rows * width], true), false)
 }

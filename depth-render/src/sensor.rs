@@ -8,6 +8,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::PinholeCamera;
+use crate::pixel_grid::{four_neighbours, morph};
 
 /// A depth sensor's errors. Lengths in metres; lengths in pixels are the sensor's own pixels
 /// (`focal_px`), converted to a rendering camera's by the ratio of the focal lengths, so that one
@@ -509,48 +510,14 @@ impl Image<'_> {
     /// 4-neighbour pair not [`Image::continuous`], or a read pixel beside one that reads
     /// nothing.
     fn near_edge(&self, step: f32, radius: f32) -> Vec<bool> {
-        let (width, rows) = (self.width, self.rows);
-        let at = |u: usize, v: usize| self.depth[v * width + u];
         let on_edge: Vec<bool> = (0..self.depth.len())
             .map(|i| {
-                let (u, v) = (i % width, i / width);
-                let z = at(u, v);
+                let z = self.depth[i];
                 z > 0.0
-                    && [
-                        (u.wrapping_sub(1), v),
-                        (u + 1, v),
-                        (u, v.wrapping_sub(1)),
-                        (u, v + 1),
-                    ]
-                    .iter()
-                    .filter(|&&(x, y)| x < width && y < rows)
-                    .any(|&(x, y)| !Self::continuous(z, at(x, y), step))
+                    && four_neighbours(i, self.width, self.rows)
+                        .any(|j| !Self::continuous(z, self.depth[j], step))
             })
             .collect();
-        let radius = radius.max(0.0) as usize;
-        if radius == 0 {
-            return on_edge;
-        }
-        // Separable dilation by a (2r + 1)² square: rows, then columns.
-        let dilate = |input: &[bool], horizontal: bool| -> Vec<bool> {
-            (0..input.len())
-                .map(|i| {
-                    let (u, v) = (i % width, i / width);
-                    let (position, length) = if horizontal { (u, width) } else { (v, rows) };
-                    let (low, high) = (
-                        position.saturating_sub(radius),
-                        (position + radius).min(length - 1),
-                    );
-                    (low..=high).any(|p| {
-                        if horizontal {
-                            input[v * width + p]
-                        } else {
-                            input[p * width + u]
-                        }
-                    })
-                })
-                .collect()
-        };
-        dilate(&dilate(&on_edge, true), false)
+        morph(&on_edge, self.width, radius.max(0.0) as usize, true)
     }
 }
