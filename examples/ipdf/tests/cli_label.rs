@@ -293,6 +293,14 @@ fn bad_flags_and_missing_inputs_fail_with_one_line() {
         &["synth", "--out", s(dir.path()), "--objects", "teapot"],
         "teapot",
     );
+    assert_fails(
+        &["synth", "--out", s(dir.path()), "--sensor", "kinekt"],
+        "kinekt",
+    );
+    assert_fails(
+        &["label", "--dataset", s(dir.path()), "--sensor", "kinekt"],
+        "kinekt",
+    );
     let bad_mesh = dir.path().join("bad.ply");
     std::fs::write(
         &bad_mesh,

@@ -249,37 +249,27 @@ fn render_reports_the_depth_it_writes_and_honours_the_camera_files_depth_scale()
     };
     let clean = ipdf_json(&args(&[]));
     assert_eq!(clean["depth_scale"], 0.1, "the file's depth_scale");
-    let read_back = |scale: f64| {
+    // The run's figures are those of the depth file it wrote (units of 0.1 mm).
+    let matches_file = |run: &serde_json::Value| {
         let image = image::open(&depth).unwrap().into_luma16();
         let values: Vec<f64> = image
             .pixels()
             .filter(|p| p[0] > 0)
-            .map(|p| f64::from(p[0]) * scale / 1e3)
+            .map(|p| f64::from(p[0]) * 0.1 / 1e3)
             .collect();
         let min = values.iter().copied().fold(f64::INFINITY, f64::min);
         let max = values.iter().copied().fold(0.0, f64::max);
-        (min, max)
+        for (key, value) in [("depth_min_m", min), ("depth_max_m", max)] {
+            assert!(
+                (run[key].as_f64().unwrap() - value).abs() < 1e-4,
+                "{run} {key} {value}"
+            );
+        }
     };
-    let (min, max) = read_back(0.1);
-    assert!(
-        (clean["depth_min_m"].as_f64().unwrap() - min).abs() < 1e-4,
-        "{clean} {min}"
-    );
-    assert!(
-        (clean["depth_max_m"].as_f64().unwrap() - max).abs() < 1e-4,
-        "{clean} {max}"
-    );
+    matches_file(&clean);
     // With --sensor the figures are those of the depth the sensor reads, as written.
     let noisy = ipdf_json(&args(&["--sensor", "kinect"]));
-    let (min, max) = read_back(0.1);
-    assert!(
-        (noisy["depth_min_m"].as_f64().unwrap() - min).abs() < 1e-4,
-        "{noisy} {min}"
-    );
-    assert!(
-        (noisy["depth_max_m"].as_f64().unwrap() - max).abs() < 1e-4,
-        "{noisy} {max}"
-    );
+    matches_file(&noisy);
     assert_ne!(noisy["depth_max_m"], clean["depth_max_m"]);
     // The same value as the file is accepted; another is refused.
     ipdf_json(&args(&["--depth-scale", "0.1"]));

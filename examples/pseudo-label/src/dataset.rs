@@ -544,4 +544,41 @@ mod tests {
         assert!(error.contains("pixel_stride"), "{error}");
         assert!(LabelOptions::default().validate().is_ok());
     }
+
+    #[test]
+    fn score_options_out_of_range_are_refused_by_name() {
+        for (name, options) in [
+            (
+                "max_score",
+                LabelOptions {
+                    max_score: 0.0,
+                    ..LabelOptions::default()
+                },
+            ),
+            (
+                "score_margin",
+                LabelOptions {
+                    score_margin: -0.1,
+                    ..LabelOptions::default()
+                },
+            ),
+            (
+                "good_score",
+                LabelOptions {
+                    good_score: f64::NAN,
+                    ..LabelOptions::default()
+                },
+            ),
+            (
+                "outlier_sigmas",
+                LabelOptions {
+                    outlier_sigmas: -3.0,
+                    ..LabelOptions::default()
+                },
+            ),
+        ] {
+            let error = options.validate().unwrap_err().to_string();
+            assert!(error.contains(name), "{error}");
+        }
+    }
 }
