@@ -15,7 +15,8 @@
 //!   [`Scene::normals`], [`Scene::barycentrics`] and [`Scene::shade`] (Lambert + ambient,
 //!   [`Material`]: flat colour, vertex colours, image texture or symmetry-breaking patches).
 //! - [`unproject`] depth back to points, [`depth_discrepancy`] (the render-and-compare score),
-//!   [`sample_surface`] (area-weighted points and normals).
+//!   [`visible_surface_discrepancy`] (BOP's VSD of two poses), [`sample_surface`]
+//!   (area-weighted points and normals).
 //! - [`DepthSensor`]: what a real depth camera reads of a clean rendering (axial and lateral
 //!   noise, quantisation, shadows, dropped pixels, misregistration), with presets for
 //!   structured light and active stereo ([`SensorPreset`]); [`MaskErrors`]: a detector's
@@ -65,7 +66,7 @@ mod symmetry;
 mod tile_cast;
 
 pub use camera::PinholeCamera;
-pub use compare::{depth_discrepancy, unproject};
+pub use compare::{depth_discrepancy, unproject, visible_surface_discrepancy};
 pub use error::RenderError;
 pub use mask_errors::MaskErrors;
 pub use mesh::{TriangleMesh, bounding_box, max_distance};

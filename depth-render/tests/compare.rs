@@ -1,9 +1,11 @@
-//! Unprojection, the render-and-compare score and surface sampling.
+//! Unprojection, the render-and-compare score, the visible surface discrepancy and surface
+//! sampling.
 use depth_render::{
     DepthSensor, Instance, PinholeCamera, Scene, SensorPreset, Window, depth_discrepancy,
-    primitives, sample_surface, unproject,
+    primitives, sample_surface, unproject, visible_surface_discrepancy,
 };
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use proptest::prelude::*;
 
 fn camera() -> PinholeCamera {
     PinholeCamera::new(600.0, 600.0, 80.0, 60.0, 160, 120).unwrap()
@@ -155,4 +157,27 @@ fn surface_samples_are_uniform_over_area_and_on_the_surface() {
     // The four 0.4 × 0.1 faces hold 0.16 of the 0.18 m² total.
     let fraction = on_big_faces as f64 / points.len() as f64;
     assert!((fraction - 0.16 / 0.18).abs() < 0.01, "{fraction}");
+}
+
+proptest! {
+    /// VSD is a fraction, the same whichever pose is called the truth, and 0 for a pose
+    /// compared with itself.
+    #[test]
+    fn visible_surface_discrepancy_is_a_symmetric_fraction(
+        pixels in prop::collection::vec((0.0f32..2.0, 0.0f32..2.0, 0.0f32..2.0), 1..64),
+        delta in 0.001f32..0.05,
+        tau in 0.001f32..0.05,
+    ) {
+        let observed: Vec<f32> = pixels.iter().map(|p| p.0).collect();
+        let a: Vec<f32> = pixels.iter().map(|p| p.1).collect();
+        let b: Vec<f32> = pixels.iter().map(|p| p.2).collect();
+        let ab = visible_surface_discrepancy(&observed, &a, &b, delta, tau);
+        prop_assert_eq!(ab, visible_surface_discrepancy(&observed, &b, &a, delta, tau));
+        if let Some(error) = ab {
+            prop_assert!((0.0..=1.0).contains(&error));
+        }
+        if let Some(same) = visible_surface_discrepancy(&observed, &a, &a, delta, tau) {
+            prop_assert_eq!(same, 0.0);
+        }
+    }
 }

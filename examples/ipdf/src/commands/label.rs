@@ -7,6 +7,7 @@ use std::path::PathBuf;
 use anyhow::Result;
 use bop_dataset::{BopDataset, DatasetInfo};
 use depth_render::SensorPreset;
+use ipdf::plots::{plot_label_errors, write_png};
 use ipdf::progress::bar;
 use pseudo_label::{DatasetOptions, LabelOptions, Shard, Strategy, label_dataset, report};
 use serde_json::json;
@@ -66,7 +67,8 @@ pub struct LabelArgs {
     /// labels; without it a split labelled with other options is refused.
     #[arg(long)]
     pub relabel: bool,
-    /// Score the labels against scene_gt.json: JSON here, a markdown table beside it (.md).
+    /// Score the labels against scene_gt.json: JSON here, a markdown table beside it (.md) and
+    /// the figure of each object's label errors (.png).
     #[arg(long)]
     pub report: Option<PathBuf>,
 }
@@ -118,6 +120,8 @@ pub fn run(args: &LabelArgs, seed: u64) -> Result<serde_json::Value> {
         });
         let scores = report(&dataset, &args.split, &info.names, &info.variant)?;
         scores.write(path)?;
+        let figure = plot_label_errors(&[(scores.variant.as_str(), &scores)])?;
+        write_png(&path.with_extension("png"), &figure)?;
         result["report"] = serde_json::to_value(&scores)?;
     }
     Ok(result)

@@ -12,14 +12,18 @@ use crate::PipelineError;
 /// The smallest and largest error shown (degrees); smaller errors are drawn at the left edge.
 const RANGE_DEG: (f64, f64) = (1e-3, 180.0);
 
-/// matplotlib's first colours, one per object.
-const COLOURS: [RGBColor; 6] = [
+/// matplotlib's ten colours (tab10), one per object.
+const COLOURS: [RGBColor; 10] = [
     RGBColor(31, 119, 180),
     RGBColor(255, 127, 14),
     RGBColor(44, 160, 44),
     RGBColor(214, 39, 40),
     RGBColor(148, 103, 189),
     RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(127, 127, 127),
+    RGBColor(188, 189, 34),
+    RGBColor(23, 190, 207),
 ];
 
 /// The figure of `reports` (one panel per `(title, report)`), each object's errors as a
@@ -88,9 +92,10 @@ fn panel(
         }
         steps.push((RANGE_DEG.1, errors.len() as f64 / n));
         let legend = format!(
-            "{name}: MAAD {:.2}°, {} labels, coverage {:.1}%",
+            "{name}: MAAD {:.2}°, {} label{}, coverage {:.1}%",
             scores.label_maad_deg,
             scores.labels,
+            if scores.labels == 1 { "" } else { "s" },
             100.0 * scores.coverage
         );
         chart
