@@ -88,8 +88,16 @@ fn labels_recover_the_symmetry_sets_of_a_can_and_a_box() {
         assert_eq!(run["instances"], 12, "{name}: {run}");
         let scores: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
         assert!(report.with_extension("md").exists());
+        let figure = image::open(report.with_extension("png")).unwrap();
+        assert_eq!((figure.width(), figure.height()), (560, 460));
         for object in ["can", "box"] {
             let entry = &scores["objects"][object];
+            // Every instance falls in one bin of visible fraction, labelled or not.
+            let bins = entry["by_visibility"].as_array().unwrap();
+            let count = |key: &str| bins.iter().map(|b| b[key].as_u64().unwrap()).sum::<u64>();
+            assert_eq!(bins.len(), 3, "{entry}");
+            assert_eq!(count("instances"), entry["instances"].as_u64().unwrap());
+            assert_eq!(count("labelled"), entry["labelled"].as_u64().unwrap());
             let maad = entry["label_maad_deg"].as_f64().unwrap();
             let coverage = entry["coverage"].as_f64().unwrap();
             let labelled = entry["labelled"].as_u64().unwrap();

@@ -61,5 +61,7 @@ pub use instance::{
     label_instance, noise_ratio, observed_cloud, observed_features, refine_pose, score_pose,
 };
 pub use model::ObjectModel;
-pub use report::{COVERAGE_ANGLE_DEG, LabelReport, ObjectLabelScores, report};
+pub use report::{
+    COVERAGE_ANGLE_DEG, LabelReport, ObjectLabelScores, VISIBILITY_BINS, VisibilityBin, report,
+};
 pub use score::{Observation, PixelLattice, render_and_compare};

@@ -7,8 +7,8 @@ use std::collections::BTreeMap;
 use std::io::Write;
 
 use bop_dataset::{
-    BopDataset, FileError, read_models_info, read_pseudo_gt, read_scene_gt, write_atomically,
-    write_json,
+    BopDataset, FileError, read_models_info, read_pseudo_gt, read_scene_gt, read_scene_gt_info,
+    write_atomically, write_json,
 };
 
 use serde::{Deserialize, Serialize};
@@ -17,6 +17,21 @@ use crate::LabelError;
 
 /// A symmetric pose counts as covered when a label lies within this angle (degrees).
 pub const COVERAGE_ANGLE_DEG: f64 = 5.0;
+
+/// The lower ends of the bins of [`ObjectLabelScores::by_visibility`]: instances under 45%
+/// visible, 45–70% and from 70%.
+pub const VISIBILITY_BINS: [f64; 3] = [0.0, 0.45, 0.7];
+
+/// Instances of one bin of visible fraction, and how many of them are labelled.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct VisibilityBin {
+    /// The bin's lower end: instances with `visib_fract` from here to the next bin's.
+    pub min_visible: f64,
+    /// Instances in the bin.
+    pub instances: usize,
+    /// Of those, instances with at least one label.
+    pub labelled: usize,
+}
 
 /// The scores of one object's labels.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
@@ -29,6 +44,11 @@ pub struct ObjectLabelScores {
     pub labelled: usize,
     /// `labelled / instances`.
     pub labelled_fraction: f64,
+    /// Instances and labelled instances by the visible fraction of the object
+    /// (`scene_gt_info.json`'s `visib_fract`, [`VISIBILITY_BINS`]); empty where no scene has
+    /// that file.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub by_visibility: Vec<VisibilityBin>,
     /// Labelled instances with a label farther than 5° from every ground-truth symmetric
     /// rotation: a near-symmetry or a wrong pose taken for a symmetry.
     pub off_instances: usize,
@@ -52,7 +72,8 @@ pub struct ObjectLabelScores {
 
 /// The scores of a split's labels: `labels.json` of `ipdf label --report`, `{"variant",
 /// "objects": {name: {"obj_id", "instances", "labelled", "labelled_fraction", "off_instances",
-/// "scores", "rejected_scores", "labels", "label_maad_deg", "coverage"}}}`.
+/// "by_visibility": [{"min_visible", "instances", "labelled"}, …], "scores", "rejected_scores",
+/// "labels", "label_maad_deg", "coverage"}}}`.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct LabelReport {
     /// The dataset variant (`dataset_info.json`) or its folder's name.
@@ -78,9 +99,11 @@ impl LabelReport {
              ground-truth symmetric pose; coverage = symmetry classes within {COVERAGE_ANGLE_DEG}° \
              of a label; off = labelled instances with a label farther than \
              {COVERAGE_ANGLE_DEG}° from every symmetric pose; scores = median (5th–95th \
-             percentile) of the best score, in the sensor's expected errors.\n\n\
-             | object | instances | labelled | labels | label MAAD (°) | coverage | off | \
-             scores, labelled | scores, unlabelled |\n|---|---|---|---|---|---|---|---|---|\n",
+             percentile) of the best score, in the sensor's expected errors; by visibility = \
+             labelled of the instances under 45%, 45–70% and from 70% visible.\n\n\
+             | object | instances | labelled | by visibility | labels | label MAAD (°) | \
+             coverage | off | scores, labelled | scores, unlabelled |\n\
+             |---|---|---|---|---|---|---|---|---|---|\n",
             self.variant
         );
         let mut rows: Vec<_> = self.objects.iter().collect();
@@ -90,12 +113,23 @@ impl LabelReport {
                 Some(p) => format!("{:.2} ({:.2}–{:.2})", p[2], p[0], p[4]),
                 None => "–".into(),
             };
+            let by_visibility = if s.by_visibility.is_empty() {
+                "–".to_string()
+            } else {
+                let bins: Vec<String> = s
+                    .by_visibility
+                    .iter()
+                    .map(|b| format!("{}/{}", b.labelled, b.instances))
+                    .collect();
+                bins.join(" · ")
+            };
             text += &format!(
-                "| {} | {} | {} ({:.1}%) | {} | {:.2} | {:.1}% | {} | {} | {} |\n",
+                "| {} | {} | {} ({:.1}%) | {} | {} | {:.2} | {:.1}% | {} | {} | {} |\n",
                 name,
                 s.instances,
                 s.labelled,
                 100.0 * s.labelled_fraction,
+                by_visibility,
                 s.labels,
                 s.label_maad_deg,
                 100.0 * s.coverage,
@@ -126,6 +160,11 @@ pub fn report(
         }
         let gt = read_scene_gt(&scene.gt_path())?;
         let pseudo = read_pseudo_gt(&scene.pseudo_gt_path())?;
+        let info = if scene.gt_info_path().exists() {
+            Some(read_scene_gt_info(&scene.gt_info_path())?)
+        } else {
+            None
+        };
         for (im_id, instances) in &pseudo {
             for (k, instance) in instances.iter().enumerate() {
                 let Some(truth) = gt.get(im_id).and_then(|list| list.get(k)) else {
@@ -151,6 +190,25 @@ pub fn report(
                     (scores, 0.0, 0.0)
                 });
                 entry.0.instances += 1;
+                let visible = info
+                    .as_ref()
+                    .and_then(|info| info.get(im_id)?.get(k))
+                    .map(|i| i.visib_fract);
+                if let Some(visible) = visible {
+                    let bins = &mut entry.0.by_visibility;
+                    if bins.is_empty() {
+                        bins.extend(VISIBILITY_BINS.map(|min_visible| VisibilityBin {
+                            min_visible,
+                            ..Default::default()
+                        }));
+                    }
+                    let bin = VISIBILITY_BINS
+                        .iter()
+                        .rposition(|&m| visible >= m)
+                        .unwrap_or(0);
+                    bins[bin].instances += 1;
+                    bins[bin].labelled += usize::from(!instance.labels.is_empty());
+                }
                 let (accepted, rejected) = best_scores.entry(truth.obj_id).or_default();
                 match (instance.labels.first(), &instance.best) {
                     (Some(label), _) => accepted.push(label.score),
