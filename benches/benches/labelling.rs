@@ -31,6 +31,7 @@ fn labelling(c: &mut Criterion) {
         let style = FrameStyle {
             material: Material::Uniform(object.colour),
             distractors: 0,
+            occluders: 0,
             sensor: Some(DepthSensor::kinect()),
             mask_errors: Some(MaskErrors::default()),
         };

@@ -19,6 +19,7 @@ fn main() -> Result<()> {
     let style = FrameStyle {
         material: Material::Uniform(object.colour),
         distractors: 2,
+        occluders: 0,
         sensor: Some(DepthSensor::kinect()),
         mask_errors: Some(MaskErrors::default()),
     };

@@ -408,6 +408,7 @@ pub fn rendered_examples(
     let style = synth_data::FrameStyle {
         material: depth_render::Material::Uniform(object.colour),
         distractors: 0,
+        occluders: 0,
         sensor: None,
         mask_errors: None,
     };

@@ -26,6 +26,7 @@
 //! let style = FrameStyle {
 //!     material: Material::Uniform(object.colour),
 //!     distractors: 0,
+//!     occluders: 0,
 //!     sensor: Some(DepthSensor::kinect()),
 //!     mask_errors: Some(MaskErrors::default()),
 //! };

@@ -119,6 +119,8 @@ pub struct FrameStyle {
     pub material: Material,
     /// Distractor objects on the table around it.
     pub distractors: usize,
+    /// Distractor objects on the table between it and the camera, hiding part of it.
+    pub occluders: usize,
     /// What the depth camera reads, or clean depth.
     pub sensor: Option<DepthSensor>,
     /// A detector's errors on the visible mask, or the exact mask.
@@ -170,10 +172,19 @@ impl FrameRenderer {
         let pose = camera_from_world * world_from_object;
         let mut instances = vec![Instance::new(0, pose), Instance::new(1, camera_from_world)];
         let mut materials = vec![style.material.clone(), Material::Uniform([0.55, 0.5, 0.45])];
-        for _ in 0..style.distractors {
+        // The camera's direction from the object, on the table.
+        let eye = camera_from_world.inverse() * Point3::origin();
+        let towards_camera = (eye.y - y).atan2(eye.x - x);
+        for k in 0..style.distractors + style.occluders {
             let kind = rng.random_range(0..self.distractors.len());
-            let angle = rng.random::<f64>() * std::f64::consts::TAU;
-            let reach = 0.1 + 0.08 * rng.random::<f64>();
+            let (angle, reach) = if k < style.distractors {
+                let angle = rng.random::<f64>() * std::f64::consts::TAU;
+                (angle, 0.1 + 0.08 * rng.random::<f64>())
+            } else {
+                // Within 20° of the line of sight, 7–10 cm in front of the object.
+                let spread = (rng.random::<f64>() * 2.0 - 1.0) * 20f64.to_radians();
+                (towards_camera + spread, 0.07 + 0.03 * rng.random::<f64>())
+            };
             let placed =
                 self.distractors[kind].place(rng, x + reach * angle.cos(), y + reach * angle.sin());
             instances.push(Instance::new(2 + kind, camera_from_world * placed));
@@ -312,6 +323,42 @@ fn gt_info(mask: &[bool], mask_visib: &[bool], depth: &[f32], width: usize) -> G
 mod tests {
     use super::*;
     use rand::SeedableRng;
+
+    #[test]
+    fn occluders_stand_between_the_object_and_the_camera() {
+        let bowl = crate::SynthObject::built_in(crate::ObjectKind::Bowl).unwrap();
+        let renderer = FrameRenderer::new(&bowl.mesh).unwrap();
+        let camera = crate::SynthOptions::t_less_camera().camera;
+        let visible = |distractors: usize, occluders: usize| -> Vec<f64> {
+            let style = FrameStyle {
+                material: Material::Uniform(bowl.colour),
+                distractors,
+                occluders,
+                sensor: None,
+                mask_errors: None,
+            };
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+            (0..24)
+                .map(|_| {
+                    let frame = renderer
+                        .render(&camera, &ViewRange::default(), &style, &mut rng)
+                        .unwrap();
+                    frame.info.visib_fract
+                })
+                .collect()
+        };
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+        // Two distractors anywhere around it hide less than two in front of it.
+        let (around, in_front) = (visible(2, 0), visible(0, 2));
+        assert!(
+            mean(&in_front) < mean(&around) - 0.05,
+            "{around:?} {in_front:?}"
+        );
+        assert!(
+            in_front.iter().filter(|&&v| v < 0.7).count() >= 3,
+            "{in_front:?}"
+        );
+    }
 
     #[test]
     fn the_camera_looks_at_the_target_from_the_range_asked_for() {

@@ -56,6 +56,8 @@ pub struct SynthOptions {
     pub view: ViewRange,
     /// Distractor objects per frame.
     pub distractors: usize,
+    /// Distractor objects per frame between the object and the camera.
+    pub occluders: usize,
     /// What the depth camera reads of the scene, or clean depth.
     pub sensor: Option<DepthSensor>,
     /// A detector's errors on the visible masks (`mask_visib`), or exact masks.
@@ -92,6 +94,7 @@ impl Default for SynthOptions {
             camera: Self::t_less_camera(),
             view: ViewRange::default(),
             distractors: 0,
+            occluders: 0,
             sensor: None,
             mask_errors: None,
             seed: 0,
@@ -142,7 +145,7 @@ fn split_options(objects: &[SynthObject], options: &SynthOptions) -> Value {
         })
         .collect();
     let camera = &options.camera;
-    let value = json!({
+    let mut value = json!({
         "generator": "ipdf synth",
         "objects": objects,
         "variant": options.variant.name(),
@@ -161,6 +164,10 @@ fn split_options(objects: &[SynthObject], options: &SynthOptions) -> Value {
         "sensor": options.sensor,
         "mask_errors": options.mask_errors,
     });
+    // Recorded only where used, so that splits made before the option compare equal.
+    if options.occluders > 0 {
+        value["occluders"] = json!(options.occluders);
+    }
     as_recorded(value)
 }
 
@@ -260,6 +267,7 @@ pub fn synthesize(
         let style = FrameStyle {
             material,
             distractors: options.distractors,
+            occluders: options.occluders,
             sensor: options.sensor,
             mask_errors: options.mask_errors,
         };

@@ -48,6 +48,10 @@ pub struct SynthArgs {
     /// Distractor objects per frame (occluders, not annotated).
     #[arg(long, default_value_t = 0)]
     pub distractors: usize,
+    /// Distractor objects per frame placed between the object and the camera (within 20° of
+    /// the line of sight, 8–14 cm in front of it), hiding part of it.
+    #[arg(long, default_value_t = 0)]
+    pub occluders: usize,
     /// Write what this depth sensor reads instead of clean depth: axial and lateral noise,
     /// quantisation, shadows, dropped pixels, a 1 px misregistration (see
     /// `depth_render::DepthSensor`).
@@ -111,6 +115,7 @@ pub fn run(args: &SynthArgs, seed: u64) -> Result<serde_json::Value> {
             ..ViewRange::default()
         },
         distractors: args.distractors,
+        occluders: args.occluders,
         sensor: args.sensor.map(SensorPreset::sensor),
         mask_errors: (args.mask_errors > 0).then(|| MaskErrors {
             max_shift_px: args.mask_errors,
