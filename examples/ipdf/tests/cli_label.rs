@@ -306,6 +306,10 @@ fn bad_flags_and_missing_inputs_fail_with_one_line() {
         "kinekt",
     );
     assert_fails(
+        &["synth", "--out", s(dir.path()), "--occluders", "two"],
+        "--occluders",
+    );
+    assert_fails(
         &["label", "--dataset", s(dir.path()), "--sensor", "kinekt"],
         "kinekt",
     );
@@ -377,4 +381,18 @@ fn an_instance_no_pose_explains_keeps_its_best_pose_for_inspection() {
         let score = best["score"].as_f64().unwrap();
         assert!(score > 1e-6 && score < 0.3, "{instance}");
     }
+}
+
+#[test]
+fn a_malformed_scene_gt_info_stops_the_report_by_name_and_writes_none() {
+    let dir = tempfile::tempdir().unwrap();
+    synth(dir.path(), "can", 2, &[]);
+    let info = dir.path().join("train/000000/scene_gt_info.json");
+    std::fs::write(&info, "{\"0\": [{\"visib_fract\": \"most\"}]}").unwrap();
+    let report = dir.path().join("report.json");
+    assert_fails(
+        &["label", "--dataset", s(dir.path()), "--report", s(&report)],
+        "scene_gt_info.json",
+    );
+    assert!(!report.exists() && !report.with_extension("png").exists());
 }

@@ -49,7 +49,7 @@ pub struct SynthArgs {
     #[arg(long, default_value_t = 0)]
     pub distractors: usize,
     /// Distractor objects per frame placed between the object and the camera (within 20° of
-    /// the line of sight, 8–14 cm in front of it), hiding part of it.
+    /// the line of sight, 7–10 cm in front of it), hiding part of it.
     #[arg(long, default_value_t = 0)]
     pub occluders: usize,
     /// Write what this depth sensor reads instead of clean depth: axial and lateral noise,
