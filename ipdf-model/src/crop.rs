@@ -2,6 +2,7 @@
 use tch::Tensor;
 
 use crate::ModelError;
+use crate::translation::CropBox;
 
 /// How a crop is cut out of an image.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -19,28 +20,15 @@ impl CropOptions {
     }
 }
 
-/// The crop of `rgb` (interleaved 8-bit RGB, `width × height`, row-major) around the non-zero
-/// pixels of `mask` (`width × height`): the square centred on the mask's bounding box, its side
-/// the box's longer side plus the margin, resampled bilinearly to `size × size`. Pixels off the
-/// mask or off the image are 0. Returns `[3, size, size]` values in `[0, 1]`, channel-major.
-pub fn crop_object(
-    rgb: &[u8],
+/// The square [`crop_object`] cuts around the non-zero pixels of `mask` (`width × height`):
+/// centred on the mask's bounding box, its side the box's longer side plus the margin.
+pub fn crop_box(
     mask: &[u8],
     width: usize,
     height: usize,
     options: &CropOptions,
-) -> Result<Vec<f32>, ModelError> {
-    if width == 0 || height == 0 || rgb.len() != width * height * 3 {
-        return Err(ModelError::ImageShape {
-            field: "rgb",
-            expected: format!(
-                "{width} × {height} × 3 = {} bytes (8-bit RGB)",
-                width * height * 3
-            ),
-            got: format!("{} bytes", rgb.len()),
-        });
-    }
-    if mask.len() != width * height {
+) -> Result<CropBox, ModelError> {
+    if width == 0 || height == 0 || mask.len() != width * height {
         return Err(ModelError::ImageShape {
             field: "mask",
             expected: format!("{width} × {height} = {} pixels", width * height),
@@ -64,9 +52,39 @@ pub fn crop_object(
     if x0 == usize::MAX {
         return Err(ModelError::EmptyMask);
     }
-    let centre_x = (x0 + x1 + 1) as f64 / 2.0;
-    let centre_y = (y0 + y1 + 1) as f64 / 2.0;
-    let side = ((x1 - x0 + 1).max(y1 - y0 + 1)) as f64 * (1.0 + options.margin);
+    Ok(CropBox {
+        centre_x: (x0 + x1 + 1) as f64 / 2.0,
+        centre_y: (y0 + y1 + 1) as f64 / 2.0,
+        side: ((x1 - x0 + 1).max(y1 - y0 + 1)) as f64 * (1.0 + options.margin),
+    })
+}
+
+/// The crop of `rgb` (interleaved 8-bit RGB, `width × height`, row-major) in the square of
+/// [`crop_box`] around the non-zero pixels of `mask` (`width × height`), resampled bilinearly
+/// to `size × size`. Pixels off the mask or off the image are 0. Returns `[3, size, size]`
+/// values in `[0, 1]`, channel-major.
+pub fn crop_object(
+    rgb: &[u8],
+    mask: &[u8],
+    width: usize,
+    height: usize,
+    options: &CropOptions,
+) -> Result<Vec<f32>, ModelError> {
+    if width == 0 || height == 0 || rgb.len() != width * height * 3 {
+        return Err(ModelError::ImageShape {
+            field: "rgb",
+            expected: format!(
+                "{width} × {height} × 3 = {} bytes (8-bit RGB)",
+                width * height * 3
+            ),
+            got: format!("{} bytes", rgb.len()),
+        });
+    }
+    let CropBox {
+        centre_x,
+        centre_y,
+        side,
+    } = crop_box(mask, width, height, options)?;
     let size = options.size;
     let scale = side / size as f64;
     let plane = size * size;

@@ -28,12 +28,18 @@ pub const fn encoded_len(components: i64) -> i64 {
 /// `[sin(2⁰r), cos(2⁰r), …, sin(2^(F−1)r), cos(2^(F−1)r)]` for `F = components`, `[…, 18F]`;
 /// the matrix itself for `F = 0`.
 pub fn encode_rotations(rotations: &Tensor, components: i64) -> Tensor {
+    encode_fourier(rotations, components)
+}
+
+/// The positional encoding of [`encode_rotations`] for any trailing length `D`: `[…, 2DF]`, or
+/// the values themselves for `F = 0`.
+pub(crate) fn encode_fourier(values: &Tensor, components: i64) -> Tensor {
     if components == 0 {
-        return rotations.shallow_clone();
+        return values.shallow_clone();
     }
     let parts: Vec<Tensor> = (0..components)
         .flat_map(|k| {
-            let scaled = rotations * f64::powi(2.0, k as i32);
+            let scaled = values * f64::powi(2.0, k as i32);
             [scaled.sin(), scaled.cos()]
         })
         .collect();

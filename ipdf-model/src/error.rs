@@ -26,6 +26,26 @@ pub enum ModelError {
         /// What is wrong with it.
         reason: String,
     },
+    /// A translation (a label, or a query that must lie in the model's working volume) outside
+    /// the working volume.
+    #[error("translation {translation:?} mm lies outside the working volume {min:?} to {max:?} mm")]
+    OutsideVolume {
+        /// The translation, mm.
+        translation: [f64; 3],
+        /// The volume's lowest corner, mm.
+        min: [f64; 3],
+        /// The volume's highest corner, mm.
+        max: [f64; 3],
+    },
+    /// A crop box or camera intrinsics that cannot be used (not finite, a focal length ≤ 0, a
+    /// crop centre outside the image).
+    #[error("crop geometry of image {image}: {reason}")]
+    CropGeometry {
+        /// Position of the image in the batch or dataset.
+        image: usize,
+        /// What is wrong.
+        reason: String,
+    },
     /// An option is out of its range.
     #[error("invalid option {name}: {reason}")]
     InvalidOption {

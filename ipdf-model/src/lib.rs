@@ -53,6 +53,7 @@ mod encoding;
 mod error;
 mod fit;
 mod head;
+mod image_input;
 mod kernels;
 mod layers;
 mod loss;
@@ -62,10 +63,11 @@ mod predict;
 mod pretrained;
 mod refine;
 mod train;
+mod translation;
 
 pub use augment::{Augmentation, augment};
 pub use checkpoint::{CHECKPOINT_FILE, CheckpointInfo};
-pub use crop::{CropOptions, crop_object, crops_to_tensor};
+pub use crop::{CropOptions, crop_box, crop_object, crops_to_tensor};
 pub use cuda::{default_device, load_cuda_backend};
 pub use encoder::EncoderKind;
 pub use encoding::{encode_rotations, encoded_len, rotations_to_tensor};
@@ -77,5 +79,11 @@ pub use model::{ImplicitPdf, ModelConfig};
 pub use optim::LearningRateSchedule;
 pub use predict::{Argmax, ArgmaxOptions, Precision, Predictor, UNDER_RESOLUTION_LIMIT};
 pub use pretrained::load_backbone;
-pub use refine::{CellMasses, RefineOptions, refine};
+pub use refine::{CellHierarchy, CellMasses, RefineOptions, So3Cells, refine, refine_on};
 pub use train::{StepReport, TrainOptions, Trainer};
+pub use translation::{
+    CameraIntrinsics, CropBox, CropGeometry, MAX_OCTREE_LEVEL, TranslationArgmax,
+    TranslationArgmaxOptions, TranslationConfig, TranslationPdf, TranslationPredictor,
+    TranslationSpace, TranslationTrainOptions, TranslationTrainer, WorkingVolume,
+    translations_to_tensor,
+};

@@ -127,20 +127,35 @@ pub fn set_nll(query_scores: &Tensor, label_scores: &Tensor, label_mask: &Tensor
     let count = query_scores.size()[1];
     let log_volume = (count as f64 / std::f64::consts::PI.powi(2)).ln();
     let others = query_scores.narrow(1, 1, count - 1);
-    // Scores more than `NEGLIGIBLE_LOG_RATIO` below the best of the other queries add less
+    set_nll_with(&others, label_scores, label_scores, label_mask, log_volume)
+}
+
+/// The set NLL of [`set_nll`] for queries drawn from any proposal `q` (importance sampling):
+/// `ln p(t_bk) = F(t_bk) − ln(e^{F(t_bk) − ln q(t_bk)} + Σ_n e^{F(Q_bn) − ln q(Q_bn)}) + ln N`
+/// from `other_terms` `[B, N − 1]` (`F − ln q` at the other queries), `label_scores` `[B, K]`
+/// (`F`), `label_terms` `[B, K]` (`F − ln q` at the labels) and `log_offset` (`ln N`). With
+/// `q` uniform the `ln q` are constants and move into `log_offset`, as [`set_nll`] does.
+pub(crate) fn set_nll_with(
+    other_terms: &Tensor,
+    label_scores: &Tensor,
+    label_terms: &Tensor,
+    label_mask: &Tensor,
+    log_offset: f64,
+) -> Tensor {
+    // Terms more than `NEGLIGIBLE_LOG_RATIO` below the best of the other queries add less
     // than N·e⁻⁵⁰ to their sum: clamping them (with no gradient) changes the loss by under 1e-18
     // and keeps the softmax's backward pass out of subnormal floats, ~100× slower on CPUs.
-    let best = others.amax([1], true).detach();
-    let log_others = others
+    let best = other_terms.amax([1], true).detach();
+    let log_others = other_terms
         .maximum(&(best - NEGLIGIBLE_LOG_RATIO))
         .logsumexp([1], true); // [B, 1]
-    let log_normalisers = Tensor::stack(&[&log_others.expand_as(label_scores), label_scores], 2)
-        .logsumexp([2], false); // [B, K]
-    let log_density = label_scores - log_normalisers + log_volume;
+    let log_normalisers =
+        Tensor::stack(&[&log_others.expand_as(label_terms), label_terms], 2).logsumexp([2], false); // [B, K]
+    let log_density = label_scores - log_normalisers + log_offset;
     let per_image =
         (log_density * label_mask).sum_dim_intlist([1].as_slice(), false, label_mask.kind())
             / label_mask.sum_dim_intlist([1].as_slice(), false, label_mask.kind());
-    -per_image.mean(query_scores.kind())
+    -per_image.mean(label_scores.kind())
 }
 
 /// The rotations of a row-major 3×3 matrix list, as a label set for image `image`: rejects an

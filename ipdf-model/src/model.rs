@@ -3,14 +3,11 @@ use serde::{Deserialize, Serialize};
 use tch::{Device, Kind, Tensor, nn};
 
 use crate::ModelError;
-use crate::encoder::{Encoder, EncoderKind};
+use crate::encoder::EncoderKind;
 use crate::encoding::{encode_rotations, encoded_len};
 use crate::head::Head;
+use crate::image_input::ImageInput;
 use crate::layers::ParamInit;
-
-/// ImageNet channel means and standard deviations (torchvision's), applied to `[0, 1]` crops.
-const IMAGENET_MEAN: [f32; 3] = [0.485, 0.456, 0.406];
-const IMAGENET_STD: [f32; 3] = [0.229, 0.224, 0.225];
 
 /// Everything that fixes a model's shape and initial weights; stored in every checkpoint.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -89,10 +86,8 @@ impl ModelConfig {
 pub struct ImplicitPdf {
     var_store: nn::VarStore,
     config: ModelConfig,
-    encoder: Encoder,
+    images: ImageInput,
     head: Head,
-    mean: Tensor,
-    std: Tensor,
 }
 
 impl std::fmt::Debug for ImplicitPdf {
@@ -111,28 +106,19 @@ impl ImplicitPdf {
         let var_store = nn::VarStore::new(device);
         let mut init = ParamInit::new(config.seed);
         let root = var_store.root();
-        let encoder = Encoder::new(&root / "encoder", config.encoder, &mut init);
-        let feature_dim = encoder.feature_dim(config.input_size);
+        let images = ImageInput::new(&root / "encoder", &config, &mut init, device);
         let head = Head::new(
             &root / "head",
-            feature_dim,
+            images.feature_dim(),
             encoded_len(config.fourier_components),
             &config.head_sizes,
             &mut init,
         );
-        let mean = Tensor::from_slice(&IMAGENET_MEAN)
-            .reshape([1, 3, 1, 1])
-            .to_device(device);
-        let std = Tensor::from_slice(&IMAGENET_STD)
-            .reshape([1, 3, 1, 1])
-            .to_device(device);
         Ok(Self {
             var_store,
             config,
-            encoder,
+            images,
             head,
-            mean,
-            std,
         })
     }
 
@@ -168,34 +154,16 @@ impl ImplicitPdf {
 
     /// Checks that `images` is a float `[B, 3, S, S]` batch with `S` the configured input size.
     pub fn check_images(&self, images: &Tensor) -> Result<(), ModelError> {
-        let size = images.size();
-        let s = self.config.input_size;
-        if size.len() != 4 || size[1] != 3 || size[2] != s || size[3] != s || size[0] == 0 {
-            return Err(ModelError::ImageShape {
-                field: "images",
-                expected: format!("[B ≥ 1, 3, {s}, {s}]"),
-                got: format!("{size:?}"),
-            });
-        }
-        if !matches!(images.kind(), Kind::Float | Kind::Double) {
-            return Err(ModelError::ImageShape {
-                field: "images",
-                expected: "float values in [0, 1]".into(),
-                got: format!("{:?}", images.kind()),
-            });
-        }
-        Ok(())
+        self.images.check(images)
     }
 
     /// The image term of the head, `[B, H]`, for crops `[B, 3, S, S]` with values in `[0, 1]`
     /// (the encoder, then the head's image layer). Computed once per image and broadcast over
     /// all queries. `train` selects batch statistics in batch norm.
     pub fn image_term(&self, images: &Tensor, train: bool) -> Result<Tensor, ModelError> {
-        self.check_images(images)?;
-        let kind = self.kind();
-        let images = images.to_device(self.device()).to_kind(kind);
-        let normalised = (images - self.mean.to_kind(kind)) / self.std.to_kind(kind);
-        let features = self.encoder.forward_t(&normalised, train);
+        let features = self
+            .images
+            .features(images, self.kind(), self.device(), train)?;
         Ok(self.head.image_term(&features))
     }
 

@@ -1,12 +1,71 @@
-//! Hierarchical evaluation of a density on the `so3-grid` hierarchy: evaluate a coarse level,
-//! keep the cells holding most of the mass, evaluate only their children, and so on.
+//! Hierarchical evaluation of a density on a hierarchy of cells (the `so3-grid` hierarchy of
+//! SO(3), or the octree of a translation volume): evaluate a coarse level, keep the cells
+//! holding most of the mass, evaluate only their children, and so on.
 use std::collections::HashMap;
 use std::sync::OnceLock;
 
-use nalgebra::{Matrix4, Vector4};
-use so3_grid::{Grid, MAX_LEVEL, cell_count, cell_volume, children};
+use nalgebra::{Matrix4, Vector3, Vector4};
+use so3_grid::{Grid, MAX_LEVEL, cell_count, cell_volume};
 
 use crate::ModelError;
+
+/// A hierarchy of cells that [`refine_on`] refines: level `l` has `cell_count(l)` cells of
+/// equal volume, and cell `i` of level `l` has the 8 children `8i..8i + 8` at level `l + 1`.
+pub trait CellHierarchy {
+    /// The finest level.
+    fn max_level(&self) -> u8;
+    /// The finest level [`refine_on`] may evaluate densely as its start.
+    fn max_dense_level(&self) -> u8;
+    /// The number of cells of `level`.
+    fn cell_count(&self, level: u8) -> u64;
+    /// The volume of one cell of `level` (SO(3): of π² in all; a translation volume: mm³).
+    fn cell_volume(&self, level: u8) -> f64;
+    /// The radius of the ball holding one cell's volume, in the coordinates of
+    /// [`CellHierarchy::sibling_offsets`].
+    fn ball_radius(&self, level: u8) -> f64;
+    /// The centres of cells `first..first + 8` of `level` (siblings) relative to the first,
+    /// in local Euclidean coordinates (SO(3): rotation vectors, radians; translations: mm).
+    fn sibling_offsets(&self, level: u8, first: u64) -> Result<[Vector3<f64>; 8], ModelError>;
+}
+
+/// The `so3-grid` hierarchy of SO(3) (level 0: 72 cells).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct So3Cells;
+
+impl CellHierarchy for So3Cells {
+    fn max_level(&self) -> u8 {
+        MAX_LEVEL
+    }
+
+    /// Level 4 (294,912 cells).
+    fn max_dense_level(&self) -> u8 {
+        4
+    }
+
+    fn cell_count(&self, level: u8) -> u64 {
+        cell_count(level)
+    }
+
+    fn cell_volume(&self, level: u8) -> f64 {
+        cell_volume(level)
+    }
+
+    /// SO(3)'s volume element is `d³ω / 8` near a point, so the ball of rotation vectors holding
+    /// a cell's volume `V` has radius `(6V / π)^⅓`.
+    fn ball_radius(&self, level: u8) -> f64 {
+        (6.0 * cell_volume(level) / std::f64::consts::PI).cbrt()
+    }
+
+    fn sibling_offsets(&self, level: u8, first: u64) -> Result<[Vector3<f64>; 8], ModelError> {
+        let grid = cached_grid(level)?;
+        let origin = grid.rotation(first)?.inverse();
+        let mut offsets = [Vector3::zeros(); 8];
+        for (k, offset) in offsets.iter_mut().enumerate() {
+            *offset = (origin * grid.rotation(first + k as u64)?).scaled_axis();
+        }
+        Ok(offsets)
+    }
+}
 
 /// Probability masses on grid cells of one or several levels that together partition SO(3).
 #[derive(Debug, Clone, PartialEq)]
@@ -25,9 +84,16 @@ pub struct CellMasses {
 }
 
 impl CellMasses {
-    /// Positions of the `count` cells of highest density (mass / volume), densest first.
+    /// Positions of the `count` cells of highest density (mass / volume) on SO(3), densest
+    /// first.
     pub fn densest(&self, count: usize) -> Vec<usize> {
-        let density = |i: usize| self.masses[i] / cell_volume(self.cells[i].0);
+        self.densest_in(&So3Cells, count)
+    }
+
+    /// Positions of the `count` cells of highest density (mass / volume) in `hierarchy`,
+    /// densest first.
+    pub fn densest_in(&self, hierarchy: &impl CellHierarchy, count: usize) -> Vec<usize> {
+        let density = |i: usize| self.masses[i] / hierarchy.cell_volume(self.cells[i].0);
         let mut order: Vec<usize> = (0..self.cells.len()).collect();
         order.sort_by(|&a, &b| density(b).total_cmp(&density(a)));
         order.truncate(count);
@@ -91,21 +157,31 @@ impl RefineOptions {
         }
     }
 
-    /// Checks levels and budgets.
+    /// Checks levels and budgets on SO(3).
     pub fn validate(&self) -> Result<(), ModelError> {
-        if self.start_level > self.level || self.level > MAX_LEVEL {
+        self.validate_for(&So3Cells)
+    }
+
+    /// Checks levels and budgets on `hierarchy`.
+    pub fn validate_for(&self, hierarchy: &impl CellHierarchy) -> Result<(), ModelError> {
+        let max = hierarchy.max_level();
+        if self.start_level > self.level || self.level > max {
             return Err(ModelError::option(
                 "level",
                 format!(
-                    "start level {} to level {}: need start ≤ level ≤ {MAX_LEVEL}",
+                    "start level {} to level {}: need start ≤ level ≤ {max}",
                     self.start_level, self.level
                 ),
             ));
         }
-        if self.start_level > 4 {
+        let dense = hierarchy.max_dense_level();
+        if self.start_level > dense {
             return Err(ModelError::option(
                 "start_level",
-                format!("{}: the dense start goes up to level 4", self.start_level),
+                format!(
+                    "{}: the dense start goes up to level {dense}",
+                    self.start_level
+                ),
             ));
         }
         if !(self.keep_mass > 0.0 && self.keep_mass <= 1.0) {
@@ -114,7 +190,7 @@ impl RefineOptions {
                 format!("{}: need a fraction in (0, 1]", self.keep_mass),
             ));
         }
-        let start_cells = cell_count(self.start_level) as usize;
+        let start_cells = hierarchy.cell_count(self.start_level) as usize;
         if self.max_queries < start_cells {
             return Err(ModelError::option(
                 "max_queries",
@@ -135,8 +211,16 @@ const MIN_ROUND: usize = 64;
 /// A cell of the current partition: `(level, index, ln(exp F · volume))`.
 type Leaf = (u8, u64, f64);
 
+/// [`refine_on`] the SO(3) hierarchy of `so3-grid`.
+pub fn refine<F>(log_density: F, options: &RefineOptions) -> Result<CellMasses, ModelError>
+where
+    F: FnMut(u8, &[u64]) -> Result<Vec<f64>, ModelError>,
+{
+    refine_on(&So3Cells, log_density, options)
+}
+
 /// The distribution of an unnormalised log-density `log_density(level, cells) → F` (one value
-/// per cell centre), refined best-first from a dense `options.start_level` grid: each round
+/// per cell centre) on the cells of `hierarchy`, refined best-first from a dense `options.start_level` grid: each round
 /// replaces the heaviest cells coarser than `options.level` (see `MIN_ROUND`) by their 8
 /// children,
 /// until those coarse cells hold less than `1 − keep_mass` of the mass or the query budget is
@@ -147,15 +231,20 @@ type Leaf = (u8, u64, f64);
 /// The normaliser corrects what the centre value misses on a cell left coarse: `exp` is convex,
 /// so where `F` slopes across a cell its mean exceeds `exp F(centre)` (on the demo's can models
 /// this undercounted `Z` by up to 3%, against dense level 4). See `slope_factor`.
-pub fn refine<F>(mut log_density: F, options: &RefineOptions) -> Result<CellMasses, ModelError>
+pub fn refine_on<H, F>(
+    hierarchy: &H,
+    mut log_density: F,
+    options: &RefineOptions,
+) -> Result<CellMasses, ModelError>
 where
+    H: CellHierarchy,
     F: FnMut(u8, &[u64]) -> Result<Vec<f64>, ModelError>,
 {
-    options.validate()?;
+    options.validate_for(hierarchy)?;
     let start = options.start_level;
-    let cells: Vec<u64> = (0..cell_count(start)).collect();
+    let cells: Vec<u64> = (0..hierarchy.cell_count(start)).collect();
     let scores = log_density(start, &cells)?;
-    let log_volume = cell_volume(start).ln();
+    let log_volume = hierarchy.cell_volume(start).ln();
     let mut leaves: Vec<Leaf> = cells
         .iter()
         .zip(&scores)
@@ -191,7 +280,7 @@ where
         let mut by_level: Vec<(u8, Vec<u64>)> = Vec::new();
         for &i in coarse.iter().rev() {
             let (level, index, _) = leaves.swap_remove(i);
-            let children = children(level, index)?;
+            let children = index * 8..index * 8 + 8;
             match by_level.iter_mut().find(|(l, _)| *l == level + 1) {
                 Some((_, cells)) => cells.extend(children),
                 None => by_level.push((level + 1, children.collect())),
@@ -200,7 +289,7 @@ where
         for (level, mut cells) in by_level {
             cells.sort_unstable();
             let scores = log_density(level, &cells)?;
-            let log_volume = cell_volume(level).ln();
+            let log_volume = hierarchy.cell_volume(level).ln();
             queries += cells.len();
             evaluated.extend(cells.iter().zip(&scores).map(|(&c, &f)| ((level, c), f)));
             leaves.extend(
@@ -212,7 +301,7 @@ where
         }
     }
     let log_total = log_sum_exp(leaves.iter().map(|leaf| leaf.2));
-    let log_factors = coarse_log_factors(&leaves, &evaluated, options.level, log_total)?;
+    let log_factors = coarse_log_factors(hierarchy, &leaves, &evaluated, options.level, log_total)?;
     let log_normaliser = log_sum_exp(
         leaves
             .iter()
@@ -234,6 +323,7 @@ where
 /// level 0, which have no parent, and for groups of siblings too light to matter: at most
 /// `e^-30` of the total `e^log_total` even at their highest value).
 fn coarse_log_factors(
+    hierarchy: &impl CellHierarchy,
     leaves: &[Leaf],
     evaluated: &HashMap<(u8, u64), f64>,
     level: u8,
@@ -259,7 +349,7 @@ fn coarse_log_factors(
                 let group = if negligible {
                     None
                 } else {
-                    sibling_slope(cached_grid(cell_level)?, first, evaluated)?
+                    sibling_slope(hierarchy, cell_level, first, evaluated)?
                         .map(|slope| (slope, highest))
                 };
                 groups.insert((cell_level, first), group);
@@ -269,7 +359,7 @@ fn coarse_log_factors(
         let factor = match group {
             Some((slope, highest)) => {
                 let own = evaluated[&(cell_level, index)];
-                slope_factor(slope, cell_level, highest - own)
+                slope_factor(slope, hierarchy.ball_radius(cell_level), highest - own)
             }
             None => 1.0,
         };
@@ -291,22 +381,27 @@ fn cached_grid(level: u8) -> Result<&'static Grid, ModelError> {
     Ok(slot.get_or_init(|| grid))
 }
 
-/// `|∇F|` (per radian) of the least-squares plane `F ≈ a + g · ω` through the 8 cells
-/// `first..first + 8` of `grid` (siblings: the children of one parent), `ω` the rotation from
-/// the first one's centre as a rotation vector; `None` unless all 8 were evaluated.
+/// `|∇F|` (per unit of the hierarchy's local coordinates) of the least-squares plane
+/// `F ≈ a + g · x` through the 8 cells `first..first + 8` of `level` (siblings: the children of
+/// one parent), `x` a cell's offset from the first (SO(3): rotation vectors); `None` unless all 8
+/// were evaluated.
 fn sibling_slope(
-    grid: &Grid,
+    hierarchy: &impl CellHierarchy,
+    level: u8,
     first: u64,
     evaluated: &HashMap<(u8, u64), f64>,
 ) -> Result<Option<f64>, ModelError> {
-    let origin = grid.rotation(first)?.inverse();
-    let (mut normal, mut rhs) = (Matrix4::<f64>::zeros(), Vector4::<f64>::zeros());
-    for sibling in first..first + 8 {
-        let Some(&f) = evaluated.get(&(grid.level(), sibling)) else {
+    let mut values = [0.0; 8];
+    for (k, value) in values.iter_mut().enumerate() {
+        let Some(&f) = evaluated.get(&(level, first + k as u64)) else {
             return Ok(None);
         };
-        let omega = (origin * grid.rotation(sibling)?).scaled_axis();
-        let row = Vector4::new(1.0, omega.x, omega.y, omega.z);
+        *value = f;
+    }
+    let offsets = hierarchy.sibling_offsets(level, first)?;
+    let (mut normal, mut rhs) = (Matrix4::<f64>::zeros(), Vector4::<f64>::zeros());
+    for (offset, f) in offsets.iter().zip(values) {
+        let row = Vector4::new(1.0, offset.x, offset.y, offset.z);
         normal += row * row.transpose();
         rhs += row * f;
     }
@@ -315,15 +410,14 @@ fn sibling_slope(
         .map(|inverse| (inverse * rhs).fixed_rows::<3>(1).norm()))
 }
 
-/// The mean of `exp F` over a cell of `level` relative to `exp F(centre)` when `F` rises with
-/// slope `slope` across it: `1 + |g|² ρ² / 10` (the second-order term of the mean over a ball
-/// of radius `ρ` holding the cell's volume; SO(3)'s volume element is `d³ω / 8` near a
-/// point), capped at `exp(rise)`, the highest value among the cell's siblings, so that a steep
-/// slope in the tail far from any mass cannot inflate the cell past what its neighbourhood holds.
+/// The mean of `exp F` over a cell relative to `exp F(centre)` when `F` rises with slope `slope`
+/// across it: `1 + |g|² ρ² / 10` (the second-order term of the mean over a ball of radius `ρ`
+/// holding the cell's volume, [`CellHierarchy::ball_radius`]), capped at `exp(rise)`, the
+/// highest value among the cell's siblings, so that a steep slope in the tail far from any mass
+/// cannot inflate the cell past what its neighbourhood holds.
 /// On the quick pipeline's trained models this takes the gap between this normaliser and
 /// dense level 4's from 0.0004–0.028 nats to 0.0002–0.0044 (`examples/ipdf/examples/refine_accuracy.rs`).
-fn slope_factor(slope: f64, level: u8, rise: f64) -> f64 {
-    let radius = (6.0 * cell_volume(level) / std::f64::consts::PI).cbrt();
+fn slope_factor(slope: f64, radius: f64, rise: f64) -> f64 {
     let second_order = 1.0 + (slope * radius).powi(2) / 10.0;
     second_order.min(rise.exp().max(1.0))
 }
@@ -413,10 +507,11 @@ mod tests {
             level in 1u8..6,
             rise in 0.0f64..30.0,
         ) {
-            let factor = slope_factor(slope, level, rise);
+            let radius = So3Cells.ball_radius(level);
+            let factor = slope_factor(slope, radius, rise);
             prop_assert!(factor >= 1.0);
             prop_assert!(factor <= rise.exp() * (1.0 + 1e-12));
-            prop_assert!(slope_factor(slope * 1.5, level, rise) >= factor);
+            prop_assert!(slope_factor(slope * 1.5, radius, rise) >= factor);
         }
 
         #[test]
@@ -436,11 +531,11 @@ mod tests {
                     ((2, i), 1.5 + gradient.dot(&omega))
                 })
                 .collect();
-            let slope = sibling_slope(&grid, first, &evaluated).unwrap().unwrap();
+            let slope = sibling_slope(&So3Cells, 2, first, &evaluated).unwrap().unwrap();
             prop_assert!((slope - gradient.norm()).abs() < 1e-6 * (1.0 + gradient.norm()));
             let mut missing = evaluated.clone();
             missing.remove(&(2, first + 3));
-            prop_assert_eq!(sibling_slope(&grid, first, &missing).unwrap(), None);
+            prop_assert_eq!(sibling_slope(&So3Cells, 2, first, &missing).unwrap(), None);
         }
     }
 

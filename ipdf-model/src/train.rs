@@ -52,42 +52,49 @@ impl Default for TrainOptions {
 impl TrainOptions {
     /// Checks the ranges of the fields.
     pub fn validate(&self) -> Result<(), ModelError> {
-        let s = &self.schedule;
-        if !(s.peak.is_finite() && s.peak > 0.0) {
-            return Err(ModelError::option(
-                "schedule.peak",
-                format!("{}: need > 0", s.peak),
-            ));
-        }
-        if s.total_steps == 0 || s.warmup_steps > s.total_steps {
-            return Err(ModelError::option(
-                "schedule.total_steps",
-                format!(
-                    "{} total with {} warm-up steps",
-                    s.total_steps, s.warmup_steps
-                ),
-            ));
-        }
-        if !(self.clip_norm.is_finite() && self.clip_norm > 0.0) {
-            return Err(ModelError::option(
-                "clip_norm",
-                format!("{}: need > 0", self.clip_norm),
-            ));
-        }
-        let a = &self.augmentation;
-        let [smallest, largest] = a.occlusion_area;
-        let areas_ok = (0.0..=1.0).contains(&smallest) && (smallest..=1.0).contains(&largest);
-        if !(0.0..=1.0).contains(&a.occlusion_probability)
-            || !(0.0..=0.5).contains(&a.colour_jitter)
-            || !areas_ok
-        {
-            return Err(ModelError::option(
-                "augmentation",
-                format!("{a:?}: probability and areas need [0, 1], jitter [0, 0.5]"),
-            ));
-        }
-        Ok(())
+        validate_optimisation(&self.schedule, self.clip_norm, &self.augmentation)
     }
+}
+
+/// Checks a learning-rate schedule, a clipping norm and augmentation ranges.
+pub(crate) fn validate_optimisation(
+    s: &LearningRateSchedule,
+    clip_norm: f64,
+    a: &Augmentation,
+) -> Result<(), ModelError> {
+    if !(s.peak.is_finite() && s.peak > 0.0) {
+        return Err(ModelError::option(
+            "schedule.peak",
+            format!("{}: need > 0", s.peak),
+        ));
+    }
+    if s.total_steps == 0 || s.warmup_steps > s.total_steps {
+        return Err(ModelError::option(
+            "schedule.total_steps",
+            format!(
+                "{} total with {} warm-up steps",
+                s.total_steps, s.warmup_steps
+            ),
+        ));
+    }
+    if !(clip_norm.is_finite() && clip_norm > 0.0) {
+        return Err(ModelError::option(
+            "clip_norm",
+            format!("{clip_norm}: need > 0"),
+        ));
+    }
+    let [smallest, largest] = a.occlusion_area;
+    let areas_ok = (0.0..=1.0).contains(&smallest) && (smallest..=1.0).contains(&largest);
+    if !(0.0..=1.0).contains(&a.occlusion_probability)
+        || !(0.0..=0.5).contains(&a.colour_jitter)
+        || !areas_ok
+    {
+        return Err(ModelError::option(
+            "augmentation",
+            format!("{a:?}: probability and areas need [0, 1], jitter [0, 0.5]"),
+        ));
+    }
+    Ok(())
 }
 
 /// What one step did.
@@ -214,20 +221,39 @@ impl Trainer {
         rng.set_stream(self.step);
         self.adam.zero_grad();
         let loss = self.loss(images, label_sets, &mut rng, true)?;
-        let loss_value = f64::try_from(&loss)?;
-        if !loss_value.is_finite() {
-            return Err(ModelError::NonFiniteLoss { step: self.step });
-        }
-        loss.backward();
-        let gradient_norm = self.adam.clip_grad_norm(self.options.clip_norm);
-        let learning_rate = self.options.schedule.at(self.step);
-        self.step += 1;
-        self.adam.step(learning_rate, self.step);
-        Ok(StepReport {
-            step: self.step,
-            loss: loss_value,
-            learning_rate,
-            gradient_norm,
-        })
+        optimisation_step(
+            &mut self.adam,
+            &self.options.schedule,
+            self.options.clip_norm,
+            &mut self.step,
+            &loss,
+        )
     }
+}
+
+/// The update after a step's loss: backward pass, gradient clipping at `clip_norm`, Adam with
+/// the scheduled learning rate; `step` counts it. A non-finite loss is refused before anything
+/// changes.
+pub(crate) fn optimisation_step(
+    adam: &mut Adam,
+    schedule: &LearningRateSchedule,
+    clip_norm: f64,
+    step: &mut u64,
+    loss: &Tensor,
+) -> Result<StepReport, ModelError> {
+    let loss_value = f64::try_from(loss)?;
+    if !loss_value.is_finite() {
+        return Err(ModelError::NonFiniteLoss { step: *step });
+    }
+    loss.backward();
+    let gradient_norm = adam.clip_grad_norm(clip_norm);
+    let learning_rate = schedule.at(*step);
+    *step += 1;
+    adam.step(learning_rate, *step);
+    Ok(StepReport {
+        step: *step,
+        loss: loss_value,
+        learning_rate,
+        gradient_norm,
+    })
 }

@@ -60,6 +60,40 @@ pub enum MetricsError {
         /// What is wrong with it.
         reason: String,
     },
+    /// A set of model points with no point.
+    #[error("the model has no points")]
+    NoModelPoints,
+    /// A model point with a NaN or infinite coordinate.
+    #[error("model point {position} is {coordinates:?} (coordinates must be finite)")]
+    InvalidModelPoint {
+        /// Position of the point in the given slice.
+        position: usize,
+        /// Its coordinates (x, y, z).
+        coordinates: [f64; 3],
+    },
+    /// The k-d tree over the model points could not be built (more than 2³² points).
+    #[error("cannot index the model points: {reason}")]
+    ModelPointIndex {
+        /// What the k-d tree reported.
+        reason: String,
+    },
+    /// An empty list of pose errors.
+    #[error("the list of pose errors is empty")]
+    NoPoseErrors,
+    /// A pose error that is negative, NaN or infinite.
+    #[error("pose error {position} is {value} (must be finite and ≥ 0)")]
+    InvalidPoseError {
+        /// Position of the error in the list.
+        position: usize,
+        /// The offending value.
+        value: f64,
+    },
+    /// An accuracy threshold that is not finite and positive.
+    #[error("threshold is {value} (must be finite and > 0)")]
+    InvalidThreshold {
+        /// The offending value.
+        value: f64,
+    },
     /// A grid level, cell or rotation rejected by `so3-grid`.
     #[error(transparent)]
     Grid(#[from] GridError),

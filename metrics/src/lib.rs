@@ -35,16 +35,50 @@
 //! assert!(recall_maad(&peaked, &gt_set, RECALL_THRESHOLD)? < 5.0);
 //! # Ok::<(), metrics::MetricsError>(())
 //! ```
+//!
+//! Poses of objects are scored in BOP's conventions (model → camera, `x_cam = R·x + t`, mm) by
+//! [`translation_error`], [`add`] (ADD) and [`add_s`] (ADD-S, for symmetric objects) over
+//! [`ModelPoints`], and a list of such errors by [`auc`], the area under the
+//! accuracy–threshold curve:
+//!
+//! ```
+//! use metrics::{ModelPoints, add, add_s, auc, translation_error};
+//! use nalgebra::{Isometry3, Point3, Vector3};
+//!
+//! // The 8 corners of a 20 mm cube; it is symmetric under quarter turns about z.
+//! let corners: Vec<Point3<f64>> = (0..8)
+//!     .map(|k| Point3::new(k & 1, (k >> 1) & 1, (k >> 2) & 1).cast::<f64>() * 20.0
+//!         - Vector3::repeat(10.0))
+//!     .collect();
+//! let cube = ModelPoints::new(&corners)?;
+//! assert!((cube.diameter() - 20.0 * 3f64.sqrt()).abs() < 1e-9);
+//!
+//! let truth = Isometry3::translation(0.0, 0.0, 500.0);
+//! let turned = truth * Isometry3::rotation(Vector3::z() * std::f64::consts::FRAC_PI_2);
+//! assert!((add(&cube, &turned, &truth) - 20.0).abs() < 1e-9); // each corner moves one side
+//! assert!(add_s(&cube, &turned, &truth) < 1e-9); // ...onto another corner
+//!
+//! let shifted = Isometry3::translation(3.0, 4.0, 500.0);
+//! assert!((translation_error(&shifted.translation.vector, &truth.translation.vector) - 5.0).abs() < 1e-12);
+//! assert!((add(&cube, &shifted, &truth) - 5.0).abs() < 1e-9);
+//!
+//! // ADD-S AUC up to 10 % of the diameter (3.46 mm): errors 0 and 5 mm score 1 and 0.
+//! let errors = [add_s(&cube, &turned, &truth), add_s(&cube, &shifted, &truth)];
+//! assert!((auc(&errors, 0.1 * cube.diameter())? - 0.5).abs() < 1e-6);
+//! # Ok::<(), metrics::MetricsError>(())
+//! ```
 
 mod distribution;
 mod error;
 mod nearest;
+mod pose_error;
 mod score;
 mod symmetry;
 
 pub use distribution::{Distribution, GridCell, MASS_SUM_TOLERANCE};
 pub use error::MetricsError;
 pub use nearest::{REFINE_BELOW, nearest_distances};
+pub use pose_error::{ModelPoints, add, add_s, auc, translation_error};
 pub use score::{
     RECALL_REFERENCE_LEVEL, RECALL_THRESHOLD, llh, maad, recall_maad, recall_min_log_density,
 };

@@ -1,0 +1,23 @@
+//! The translation half of a 6D pose: an implicit density over the object's translation in the
+//! camera frame, conditioned on the crop and on where the crop came from.
+//!
+//! - [`WorkingVolume`]: the box of translations (mm) the density lives in, with an octree of
+//!   equal cells in Morton order for hierarchical evaluation ([`crate::refine_on`]).
+//! - [`CropGeometry`]: the crop's square in the image ([`crate::crop_box`]) and the camera's
+//!   intrinsics.
+//! - [`TranslationPdf`]: `F(t, I)`; [`TranslationSpace`] (volume and query normalisation) is
+//!   set from the training labels and kept in its configuration.
+//! - [`TranslationTrainer`]: label sets of translations, each label in its own
+//!   importance-sampled normaliser.
+//! - [`TranslationPredictor`]: the distribution on the octree, `ln p(t | I)`, and the argmax.
+mod geometry;
+mod model;
+mod predict;
+mod train;
+mod volume;
+
+pub use geometry::{CameraIntrinsics, CropBox, CropGeometry, translations_to_tensor};
+pub use model::{TranslationConfig, TranslationPdf, TranslationSpace};
+pub use predict::{TranslationArgmax, TranslationArgmaxOptions, TranslationPredictor};
+pub use train::{TranslationTrainOptions, TranslationTrainer};
+pub use volume::{MAX_OCTREE_LEVEL, WorkingVolume};

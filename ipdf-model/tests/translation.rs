@@ -1,0 +1,329 @@
+//! The translation model on renders of a cube at random places in front of the camera: it
+//! learns where the cube is to a few millimetres; its octree distribution sums to 1 and matches
+//! the dense grid; gradient ascent ends near the densest cell; bad input gets typed errors.
+use depth_render::{Instance, Lighting, Material, PinholeCamera, Primitive, Scene, Window};
+use ipdf_model::{
+    CameraIntrinsics, CellHierarchy, CropGeometry, CropOptions, ModelError, RefineOptions,
+    TranslationArgmaxOptions, TranslationConfig, TranslationPdf, TranslationPredictor,
+    TranslationSpace, TranslationTrainOptions, TranslationTrainer, WorkingVolume, crop_box,
+    crop_object, crops_to_tensor, refine_on,
+};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use proptest::prelude::*;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use tch::{Device, Tensor};
+
+const SIZE: usize = 32;
+const IMAGE: usize = 192;
+const FOCAL: f64 = 330.0;
+
+/// Crops of a 10 cm cube (one fixed generic orientation) at `count` random translations
+/// (z 450–650 mm, within ±12% of z sideways), their geometry and translations (mm).
+struct Renders {
+    images: Tensor,
+    geometry: Vec<CropGeometry>,
+    translations: Vec<Vector3<f64>>,
+}
+
+fn renders(count: usize, seed: u64) -> Renders {
+    let cube = Primitive::Cuboid { extents: [0.1; 3] };
+    let scene = Scene::new(&[cube.mesh().unwrap()]);
+    let centre = IMAGE as f64 / 2.0;
+    let camera =
+        PinholeCamera::new(FOCAL, FOCAL, centre, centre, IMAGE as u32, IMAGE as u32).unwrap();
+    let intrinsics = CameraIntrinsics {
+        fx: FOCAL,
+        fy: FOCAL,
+        cx: centre,
+        cy: centre,
+    };
+    let rotation = UnitQuaternion::from_euler_angles(0.5, 0.3, 0.2);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let (mut crops, mut geometry, mut translations) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..count {
+        let z = rng.random_range(0.45..0.65);
+        let x = z * rng.random_range(-0.12..0.12);
+        let y = z * rng.random_range(-0.12..0.12);
+        let pose = Isometry3::from_parts(Translation3::new(x, y, z), rotation);
+        let instances = [Instance::new(0, pose)];
+        let rendering = scene
+            .render(&camera, &instances, Window::full(&camera))
+            .unwrap();
+        let rgb = scene
+            .shade(
+                &camera,
+                &instances,
+                &[Material::Uniform([0.9, 0.6, 0.2])],
+                &Lighting::default(),
+                &rendering,
+            )
+            .unwrap()
+            .concat();
+        let mask: Vec<u8> = rendering
+            .instance
+            .iter()
+            .map(|hit| u8::from(hit.is_some()))
+            .collect();
+        let options = CropOptions::new(SIZE);
+        crops.push(crop_object(&rgb, &mask, IMAGE, IMAGE, &options).unwrap());
+        geometry.push(CropGeometry {
+            crop: crop_box(&mask, IMAGE, IMAGE, &options).unwrap(),
+            intrinsics,
+            width: IMAGE,
+            height: IMAGE,
+        });
+        translations.push(Vector3::new(x, y, z) * 1000.0);
+    }
+    Renders {
+        images: crops_to_tensor(&crops, SIZE).unwrap(),
+        geometry,
+        translations,
+    }
+}
+
+fn label_sets(renders: &Renders) -> Vec<Vec<Vector3<f64>>> {
+    renders.translations.iter().map(|t| vec![*t]).collect()
+}
+
+fn median(mut values: Vec<f64>) -> f64 {
+    values.sort_by(f64::total_cmp);
+    values[values.len() / 2]
+}
+
+#[test]
+fn translations_are_learned_to_a_few_millimetres() {
+    let train = renders(192, 1);
+    let test = renders(24, 2);
+    let labels = label_sets(&train);
+    let space = TranslationSpace::from_labels(&labels, &train.geometry).unwrap();
+    let model =
+        TranslationPdf::new(TranslationConfig::small(SIZE as i64, space), Device::Cpu).unwrap();
+    let steps = 300;
+    let mut options = TranslationTrainOptions {
+        queries: 1_024,
+        ..TranslationTrainOptions::default()
+    };
+    options.schedule.total_steps = steps;
+    options.schedule.warmup_steps = 20;
+    let mut trainer = TranslationTrainer::new(model, options).unwrap();
+    let batch = 16;
+    let mut first_loss = None;
+    let mut last_losses = Vec::new();
+    for step in 0..steps as usize {
+        let indices: Vec<i64> = (0..batch)
+            .map(|i| ((step * batch + i) % train.translations.len()) as i64)
+            .collect();
+        let images = train.images.index_select(0, &Tensor::from_slice(&indices));
+        let geometry: Vec<CropGeometry> = indices
+            .iter()
+            .map(|&i| train.geometry[i as usize])
+            .collect();
+        let sets: Vec<Vec<Vector3<f64>>> = indices
+            .iter()
+            .map(|&i| labels[i as usize].clone())
+            .collect();
+        let report = trainer.train_step(&images, &geometry, &sets).unwrap();
+        first_loss.get_or_insert(report.loss);
+        if step as u64 >= steps - 20 {
+            last_losses.push(report.loss);
+        }
+    }
+    let model = trainer.into_model();
+    let predictor = TranslationPredictor::new(&model);
+    let argmax_options = TranslationArgmaxOptions::for_model(&model);
+    let volume = model.space().volume;
+    let mut errors = Vec::new();
+    let mut log_likelihoods = Vec::new();
+    for (i, truth) in test.translations.iter().enumerate() {
+        let image = test.images.get(i as i64);
+        let geometry = &test.geometry[i];
+        let argmax = predictor.argmax(&image, geometry, &argmax_options).unwrap();
+        errors.push((argmax.translation - truth).norm());
+        assert!(argmax.score >= argmax.start_score);
+        let distribution = predictor
+            .hierarchical(&image, geometry, &argmax_options.refine)
+            .unwrap();
+        assert!((distribution.masses.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+        let llh = predictor
+            .log_densities(&image, geometry, &[*truth], &distribution)
+            .unwrap()[0];
+        log_likelihoods.push(llh);
+    }
+    let uniform_llh = -volume.extent().product().ln();
+    let mean_llh = log_likelihoods.iter().sum::<f64>() / log_likelihoods.len() as f64;
+    let median_error = median(errors.clone());
+    println!(
+        "loss {:.2} → {:.2}; test: median error {median_error:.1} mm (max {:.1}), LLH {mean_llh:.2} (uniform {uniform_llh:.2})",
+        first_loss.unwrap(),
+        last_losses.iter().sum::<f64>() / last_losses.len() as f64,
+        errors.iter().copied().fold(0.0, f64::max),
+    );
+    assert!(median_error < 6.0, "median error {median_error} mm");
+    assert!(
+        mean_llh > uniform_llh + 8.0,
+        "LLH {mean_llh} vs {uniform_llh}"
+    );
+
+    // On one test crop: the hierarchical distribution against the dense level-6 grid (262,144
+    // cells of at most 9 mm), and gradient ascent against the densest cell.
+    let image = test.images.get(0);
+    let geometry = &test.geometry[0];
+    let dense = predictor
+        .hierarchical(
+            &image,
+            geometry,
+            &RefineOptions {
+                start_level: 6,
+                level: 6,
+                keep_mass: 1.0,
+                max_queries: usize::MAX,
+            },
+        )
+        .unwrap();
+    let budgeted = predictor
+        .hierarchical(
+            &image,
+            geometry,
+            &RefineOptions {
+                start_level: 4,
+                level: 6,
+                keep_mass: 0.9999,
+                max_queries: 4_096 * 3,
+            },
+        )
+        .unwrap();
+    assert_eq!(dense.cells.len(), 262_144);
+    let gap = (budgeted.log_normaliser - dense.log_normaliser).abs();
+    assert!(
+        gap < 0.05,
+        "ln Z: hierarchical {} dense {}",
+        budgeted.log_normaliser,
+        dense.log_normaliser
+    );
+    let densest = |d: &ipdf_model::CellMasses| {
+        let (level, index) = d.cells[d.densest_in(&volume, 1)[0]];
+        volume.cell_centre(level, index).unwrap()
+    };
+    assert!((densest(&budgeted) - densest(&dense)).norm() < 1e-9);
+    let fine = predictor
+        .hierarchical(&image, geometry, &argmax_options.refine)
+        .unwrap();
+    let argmax = predictor.argmax(&image, geometry, &argmax_options).unwrap();
+    let finest = volume.extent() / f64::from(1u32 << argmax_options.refine.level);
+    let offset = argmax.translation - densest(&fine);
+    assert!(
+        offset.norm() < 2.0 * finest.norm(),
+        "ascent moved {offset:?} mm from the densest cell of size {finest:?}"
+    );
+}
+
+/// An isotropic Gaussian log-density (σ mm) around `centre`, at cell centres.
+fn gaussian(
+    volume: &WorkingVolume,
+    centre: &Vector3<f64>,
+    sigma: f64,
+    level: u8,
+    cells: &[u64],
+) -> Vec<f64> {
+    cells
+        .iter()
+        .map(|&i| {
+            -(volume.cell_centre(level, i).unwrap() - centre).norm_squared() / (2.0 * sigma * sigma)
+        })
+        .collect()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(16))]
+
+    #[test]
+    fn octree_refinement_sums_to_one_equals_dense_and_integrates_a_gaussian(
+        x in -50.0f64..50.0, y in -50.0f64..50.0, z in 500.0f64..700.0, sigma in 3.0f64..30.0,
+    ) {
+        let volume = WorkingVolume::new([-200.0, -200.0, 400.0], [200.0, 200.0, 800.0]).unwrap();
+        let centre = Vector3::new(x, y, z);
+        let everything = RefineOptions { start_level: 1, level: 3, keep_mass: 1.0, max_queries: usize::MAX };
+        let refined = refine_on(&volume, |l, c| Ok(gaussian(&volume, &centre, sigma, l, c)), &everything).unwrap();
+        let dense = gaussian(&volume, &centre, sigma, 3, &(0..512).collect::<Vec<_>>());
+        let peak = dense.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let total: f64 = dense.iter().map(|f| (f - peak).exp()).sum();
+        prop_assert!((refined.masses.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+        prop_assert_eq!(refined.cells.len(), 512);
+        for (&(level, index), mass) in refined.cells.iter().zip(&refined.masses) {
+            prop_assert_eq!(level, 3);
+            prop_assert!((mass - (dense[index as usize] - peak).exp() / total).abs() < 1e-12);
+        }
+        // Refined down to cells of ≤ 2 mm where the mass is, the normaliser is the Gaussian's
+        // integral, (2πσ²)^{3/2}.
+        let options = RefineOptions::translation(&volume, 2.0);
+        let fine = refine_on(&volume, |l, c| Ok(gaussian(&volume, &centre, sigma, l, c)), &options).unwrap();
+        let expected = 1.5 * (2.0 * std::f64::consts::PI * sigma * sigma).ln();
+        prop_assert!((fine.log_normaliser - expected).abs() < 0.02, "{} vs {expected}", fine.log_normaliser);
+        prop_assert!(fine.queries <= options.max_queries);
+        prop_assert!((fine.masses.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+        let cell = volume.cell_volume(options.level);
+        prop_assert!(cell.cbrt() <= 2.0);
+    }
+}
+
+#[test]
+fn bad_translation_input_gets_typed_errors() {
+    let data = renders(2, 3);
+    let labels = label_sets(&data);
+    let space = TranslationSpace::from_labels(&labels, &data.geometry).unwrap();
+    let model =
+        TranslationPdf::new(TranslationConfig::small(SIZE as i64, space), Device::Cpu).unwrap();
+    let trainer = TranslationTrainer::new(model, TranslationTrainOptions::default()).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(0);
+    let mut loss = |geometry: &[CropGeometry], sets: &[Vec<Vector3<f64>>]| {
+        trainer.loss(&data.images, geometry, sets, &mut rng, false)
+    };
+    assert!(
+        loss(&data.geometry, &labels)
+            .unwrap()
+            .double_value(&[])
+            .is_finite()
+    );
+    let empty = vec![labels[0].clone(), vec![]];
+    assert!(matches!(
+        loss(&data.geometry, &empty),
+        Err(ModelError::LabelSet { image: 1, .. })
+    ));
+    let far = vec![labels[0].clone(), vec![Vector3::new(0.0, 0.0, 5_000.0)]];
+    let err = loss(&data.geometry, &far).unwrap_err();
+    assert!(
+        matches!(err, ModelError::LabelSet { image: 1, ref reason } if reason.contains("working volume")),
+        "{err}"
+    );
+    let nan = vec![vec![Vector3::new(f64::NAN, 0.0, 500.0)], labels[1].clone()];
+    assert!(matches!(
+        loss(&data.geometry, &nan),
+        Err(ModelError::LabelSet { image: 0, .. })
+    ));
+    let mut outside = data.geometry.clone();
+    outside[1].crop.centre_x = IMAGE as f64 + 40.0;
+    assert!(matches!(
+        loss(&outside, &labels),
+        Err(ModelError::CropGeometry { image: 1, .. })
+    ));
+    assert!(matches!(
+        TranslationSpace::from_labels(&[], &[]),
+        Err(ModelError::LabelSet { .. })
+    ));
+    let predictor = TranslationPredictor::new(trainer.model());
+    let volume = trainer.model().space().volume;
+    assert!(matches!(
+        volume.locate(4, &Vector3::new(0.0, 0.0, -10.0)),
+        Err(ModelError::OutsideVolume { .. })
+    ));
+    assert!(
+        predictor
+            .argmax(
+                &data.images.get(0),
+                &outside[1],
+                &TranslationArgmaxOptions::for_model(trainer.model())
+            )
+            .is_err()
+    );
+}
