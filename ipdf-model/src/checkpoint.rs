@@ -9,7 +9,12 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 use tch::{Device, Tensor, nn};
 
+use crate::optim::Adam;
 use crate::train::{TrainOptions, Trainer};
+use crate::translation::{
+    TranslationConfig, TranslationPdf, TranslationSpace, TranslationTrainOptions,
+    TranslationTrainer,
+};
 use crate::{ImplicitPdf, ModelConfig, ModelError};
 
 /// The name of a checkpoint's JSON file.
@@ -23,8 +28,15 @@ pub struct CheckpointInfo {
     pub format: String,
     /// The model's configuration.
     pub model: ModelConfig,
-    /// Training options, when saved by a trainer.
+    /// The working volume and query normalisation of a translation model ([`TranslationPdf`]);
+    /// absent for a rotation model ([`ImplicitPdf`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub translation: Option<TranslationSpace>,
+    /// Training options of a rotation model, when saved by a trainer.
     pub training: Option<TrainOptions>,
+    /// Training options of a translation model, when saved by a trainer.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub translation_training: Option<TranslationTrainOptions>,
     /// Training steps done.
     pub step: u64,
     /// The weights file, relative to the folder.
@@ -95,22 +107,130 @@ impl ModelConfig {
 impl ImplicitPdf {
     /// Writes the model as a checkpoint in `dir` (created if missing), with no training state.
     pub fn save(&self, dir: &Path) -> Result<(), ModelError> {
-        write_checkpoint(dir, self, None)
+        let info = CheckpointInfo {
+            model: self.config().clone(),
+            ..empty_info()
+        };
+        write_checkpoint(dir, self.var_store(), info, None)
     }
 
-    /// The model of the checkpoint in `dir`, on `device`.
+    /// The model of the checkpoint in `dir`, on `device`; a translation model's checkpoint is
+    /// refused.
     pub fn load(dir: &Path, device: Device) -> Result<Self, ModelError> {
         let info = CheckpointInfo::read(dir)?;
+        if info.translation.is_some() {
+            return Err(ModelError::checkpoint(
+                &dir.join(CHECKPOINT_FILE),
+                "translation: this is a translation model's checkpoint, not a rotation model's",
+            ));
+        }
         let mut model = ImplicitPdf::new(info.model.clone(), device)?;
         load_exact(model.var_store_mut(), &dir.join(&info.weights))?;
         Ok(model)
     }
 }
 
+impl TranslationPdf {
+    /// Writes the model as a checkpoint in `dir` (created if missing), with no training state.
+    pub fn save(&self, dir: &Path) -> Result<(), ModelError> {
+        write_checkpoint(dir, self.var_store(), translation_info(self, None), None)
+    }
+
+    /// The translation model of the checkpoint in `dir`, on `device`; a rotation model's
+    /// checkpoint is refused.
+    pub fn load(dir: &Path, device: Device) -> Result<Self, ModelError> {
+        let info = CheckpointInfo::read(dir)?;
+        let Some(space) = info.translation else {
+            return Err(ModelError::checkpoint(
+                &dir.join(CHECKPOINT_FILE),
+                "translation: missing (a rotation model's checkpoint, not a translation model's)",
+            ));
+        };
+        let config = TranslationConfig {
+            network: info.model.clone(),
+            space,
+        };
+        let mut model = TranslationPdf::new(config, device)?;
+        load_exact(model.var_store_mut(), &dir.join(&info.weights))?;
+        Ok(model)
+    }
+}
+
+fn translation_info(
+    model: &TranslationPdf,
+    training: Option<&TranslationTrainOptions>,
+) -> CheckpointInfo {
+    CheckpointInfo {
+        model: model.config().network.clone(),
+        translation: Some(model.config().space),
+        translation_training: training.cloned(),
+        ..empty_info()
+    }
+}
+
+impl TranslationTrainer {
+    /// Writes the model, Adam's state, the options and the step as a checkpoint in `dir`.
+    pub fn save(&self, dir: &Path) -> Result<(), ModelError> {
+        write_checkpoint(
+            dir,
+            self.model().var_store(),
+            translation_info(self.model(), Some(self.options())),
+            Some((self.adam(), self.step())),
+        )
+    }
+
+    /// Continues the training saved in `dir` on `device`, at its step, with its options.
+    pub fn resume(dir: &Path, device: Device) -> Result<Self, ModelError> {
+        let info = CheckpointInfo::read(dir)?;
+        let json = dir.join(CHECKPOINT_FILE);
+        let (Some(options), Some(optimizer)) =
+            (info.translation_training.clone(), info.optimizer.clone())
+        else {
+            return Err(ModelError::checkpoint(
+                &json,
+                "translation_training, optimizer: missing (saved without training state)",
+            ));
+        };
+        let model = TranslationPdf::load(dir, device)?;
+        let mut trainer = TranslationTrainer::at_step(model, options, info.step)?;
+        let path = dir.join(optimizer);
+        let saved = read_tensors(&path, device)?;
+        trainer
+            .adam_mut()
+            .load_state(saved)
+            .map_err(|reason| ModelError::checkpoint(&path, reason))?;
+        Ok(trainer)
+    }
+}
+
+/// A rotation model's info with no files or step yet.
+fn empty_info() -> CheckpointInfo {
+    CheckpointInfo {
+        format: FORMAT.into(),
+        model: ModelConfig::default(),
+        translation: None,
+        training: None,
+        translation_training: None,
+        step: 0,
+        weights: String::new(),
+        optimizer: None,
+    }
+}
+
 impl Trainer {
     /// Writes the model, Adam's state, the options and the step as a checkpoint in `dir`.
     pub fn save(&self, dir: &Path) -> Result<(), ModelError> {
-        write_checkpoint(dir, &self.model, Some(self))
+        let info = CheckpointInfo {
+            model: self.model.config().clone(),
+            training: Some(self.options.clone()),
+            ..empty_info()
+        };
+        write_checkpoint(
+            dir,
+            self.model.var_store(),
+            info,
+            Some((&self.adam, self.step)),
+        )
     }
 
     /// Continues the training saved in `dir` on `device`, at its step, with its options.
@@ -136,34 +256,33 @@ impl Trainer {
     }
 }
 
+/// Writes `var_store` (and Adam's state at a step) as `model-<step>.safetensors` (and
+/// `optimizer-<step>.safetensors`), then `info` with those names and the step as
+/// `checkpoint.json`, then removes the files of other steps.
 fn write_checkpoint(
     dir: &Path,
-    model: &ImplicitPdf,
-    trainer: Option<&Trainer>,
+    var_store: &nn::VarStore,
+    mut info: CheckpointInfo,
+    training: Option<(&Adam, u64)>,
 ) -> Result<(), ModelError> {
     std::fs::create_dir_all(dir).map_err(|source| ModelError::Io {
         path: dir.to_path_buf(),
         source,
     })?;
-    let step = trainer.map_or(0, |t| t.step);
+    let step = training.map_or(0, |(_, step)| step);
     let weights = format!("model-{step:08}.safetensors");
-    write_tensors(&dir.join(&weights), &named_variables(model.var_store()))?;
-    let optimizer = match trainer {
-        Some(t) => {
+    write_tensors(&dir.join(&weights), &named_variables(var_store))?;
+    let optimizer = match training {
+        Some((adam, _)) => {
             let name = format!("optimizer-{step:08}.safetensors");
-            write_tensors(&dir.join(&name), &t.adam.state())?;
+            write_tensors(&dir.join(&name), &adam.state())?;
             Some(name)
         }
         None => None,
     };
-    let info = CheckpointInfo {
-        format: FORMAT.into(),
-        model: model.config().clone(),
-        training: trainer.map(|t| t.options.clone()),
-        step,
-        weights: weights.clone(),
-        optimizer: optimizer.clone(),
-    };
+    info.step = step;
+    info.weights.clone_from(&weights);
+    info.optimizer.clone_from(&optimizer);
     let json = dir.join(CHECKPOINT_FILE);
     let text = serde_json::to_string_pretty(&info)
         .map_err(|e| ModelError::checkpoint(&json, e.to_string()))?;

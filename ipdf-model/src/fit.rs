@@ -15,6 +15,67 @@ use crate::loss::check_label_sets;
 use crate::train::{StepReport, Trainer};
 use crate::{ImplicitPdf, ModelError, Predictor};
 
+/// What [`fit`] trains: a trainer ([`Trainer`], [`crate::TranslationTrainer`]) and the kind of
+/// labelled data it takes batches of.
+pub trait FitTarget {
+    /// Training and validation data.
+    type Data;
+    /// The number of examples in `data`.
+    fn examples(data: &Self::Data) -> usize;
+    /// Steps done so far.
+    fn steps_done(&self) -> u64;
+    /// The seed of the training options (it also orders the epochs' batches).
+    fn seed(&self) -> u64;
+    /// One optimisation step on the examples at `indices`.
+    fn train_batch(
+        &mut self,
+        data: &Self::Data,
+        indices: &[usize],
+    ) -> Result<StepReport, ModelError>;
+    /// The mean log-likelihood of `data`'s labels under the model (see [`validation_llh`]).
+    fn validation_llh(&self, data: &Self::Data, options: &FitOptions) -> Result<f64, ModelError>;
+    /// Writes the checkpoint.
+    fn save_to(&self, dir: &Path) -> Result<(), ModelError>;
+}
+
+impl FitTarget for Trainer {
+    type Data = LabelledImages;
+
+    fn examples(data: &LabelledImages) -> usize {
+        data.len()
+    }
+
+    fn steps_done(&self) -> u64 {
+        self.step()
+    }
+
+    fn seed(&self) -> u64 {
+        self.options().seed
+    }
+
+    fn train_batch(
+        &mut self,
+        data: &LabelledImages,
+        indices: &[usize],
+    ) -> Result<StepReport, ModelError> {
+        let (images, sets) = data.batch(indices);
+        self.train_step(&images, &sets)
+    }
+
+    /// On the dense `options.validation_level` grid.
+    fn validation_llh(
+        &self,
+        data: &LabelledImages,
+        options: &FitOptions,
+    ) -> Result<f64, ModelError> {
+        validation_llh(self.model(), data, options.validation_level)
+    }
+
+    fn save_to(&self, dir: &Path) -> Result<(), ModelError> {
+        self.save(dir)
+    }
+}
+
 /// The name of the training log in a run folder.
 pub const TRAIN_LOG: &str = "train_log.csv";
 const LOG_HEADER: &str = "epoch,step,loss,learning_rate,validation_llh,seconds,images_per_second";
@@ -86,7 +147,7 @@ pub struct FitOptions {
     pub steps_per_epoch: u64,
     /// Images per step.
     pub batch_size: usize,
-    /// Grid level of the validation LLH (2: 4,608 cells).
+    /// Grid level of the validation LLH of rotation models (2: 4,608 cells).
     pub validation_level: u8,
 }
 
@@ -114,10 +175,10 @@ pub struct EpochReport {
 /// trainer's seed and the epoch), takes `steps_per_epoch` batches from it, then evaluates the
 /// validation LLH, saves a checkpoint into `run_dir` and rewrites `run_dir/train_log.csv`
 /// (both atomically). `on_step` sees every step (for progress bars).
-pub fn fit(
-    trainer: &mut Trainer,
-    train: &LabelledImages,
-    validation: Option<&LabelledImages>,
+pub fn fit<T: FitTarget>(
+    trainer: &mut T,
+    train: &T::Data,
+    validation: Option<&T::Data>,
     options: &FitOptions,
     run_dir: &Path,
     mut on_step: impl FnMut(&StepReport),
@@ -128,24 +189,23 @@ pub fn fit(
             format!("{options:?}: epochs, steps_per_epoch and batch_size must be ≥ 1"),
         ));
     }
-    let mut log = read_log(run_dir, trainer.step() / options.steps_per_epoch);
+    let mut log = read_log(run_dir, trainer.steps_done() / options.steps_per_epoch);
     let mut reports = Vec::new();
-    let first_epoch = trainer.step() / options.steps_per_epoch;
+    let first_epoch = trainer.steps_done() / options.steps_per_epoch;
     for epoch in first_epoch..options.epochs {
-        let mut order: Vec<usize> = (0..train.len()).collect();
-        let mut rng = ChaCha8Rng::seed_from_u64(trainer.options().seed ^ 0x5eed_ba7c);
+        let mut order: Vec<usize> = (0..T::examples(train)).collect();
+        let mut rng = ChaCha8Rng::seed_from_u64(trainer.seed() ^ 0x5eed_ba7c);
         rng.set_stream(epoch);
         order.shuffle(&mut rng);
         let started = Instant::now();
         let mut loss_sum = 0.0;
         let mut last = None;
-        let done_in_epoch = trainer.step() - epoch * options.steps_per_epoch;
+        let done_in_epoch = trainer.steps_done() - epoch * options.steps_per_epoch;
         for step in done_in_epoch..options.steps_per_epoch {
             let indices: Vec<usize> = (0..options.batch_size)
                 .map(|i| order[(step as usize * options.batch_size + i) % order.len()])
                 .collect();
-            let (images, sets) = train.batch(&indices);
-            let report = trainer.train_step(&images, &sets)?;
+            let report = trainer.train_batch(train, &indices)?;
             loss_sum += report.loss;
             on_step(&report);
             last = Some(report);
@@ -153,23 +213,19 @@ pub fn fit(
         let seconds = started.elapsed().as_secs_f64();
         let steps = (options.steps_per_epoch - done_in_epoch).max(1);
         let validation_llh = match validation {
-            Some(data) => Some(validation_llh(
-                trainer.model(),
-                data,
-                options.validation_level,
-            )?),
+            Some(data) => Some(trainer.validation_llh(data, options)?),
             None => None,
         };
         let report = EpochReport {
             epoch: epoch + 1,
-            step: trainer.step(),
+            step: trainer.steps_done(),
             loss: loss_sum / steps as f64,
             learning_rate: last.map_or(0.0, |r| r.learning_rate),
             validation_llh,
             seconds,
             images_per_second: (steps as usize * options.batch_size) as f64 / seconds.max(1e-9),
         };
-        trainer.save(run_dir)?;
+        trainer.save_to(run_dir)?;
         log.push(log_line(&report));
         write_log(run_dir, &log)?;
         reports.push(report);

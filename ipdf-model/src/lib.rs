@@ -72,7 +72,7 @@ pub use cuda::{default_device, load_cuda_backend};
 pub use encoder::EncoderKind;
 pub use encoding::{encode_rotations, encoded_len, rotations_to_tensor};
 pub use error::ModelError;
-pub use fit::{EpochReport, FitOptions, LabelledImages, TRAIN_LOG, fit, validation_llh};
+pub use fit::{EpochReport, FitOptions, FitTarget, LabelledImages, TRAIN_LOG, fit, validation_llh};
 pub use kernels::{REPRODUCIBLE_CPU_KERNELS, kernel_settings, missing_kernel_settings};
 pub use loss::{LabelLoss, QuerySampling, label_set_from_matrices, set_nll};
 pub use model::{ImplicitPdf, ModelConfig};
@@ -82,8 +82,8 @@ pub use pretrained::load_backbone;
 pub use refine::{CellHierarchy, CellMasses, RefineOptions, So3Cells, refine, refine_on};
 pub use train::{StepReport, TrainOptions, Trainer};
 pub use translation::{
-    CameraIntrinsics, CropBox, CropGeometry, MAX_OCTREE_LEVEL, TranslationArgmax,
-    TranslationArgmaxOptions, TranslationConfig, TranslationPdf, TranslationPredictor,
-    TranslationSpace, TranslationTrainOptions, TranslationTrainer, WorkingVolume,
-    translations_to_tensor,
+    CameraIntrinsics, CropBox, CropGeometry, LabelledTranslations, MAX_OCTREE_LEVEL,
+    TranslationArgmax, TranslationArgmaxOptions, TranslationConfig, TranslationPdf,
+    TranslationPredictor, TranslationSpace, TranslationTrainOptions, TranslationTrainer,
+    WorkingVolume, translation_validation_llh, translations_to_tensor,
 };

@@ -3,10 +3,11 @@
 //! the dense grid; gradient ascent ends near the densest cell; bad input gets typed errors.
 use depth_render::{Instance, Lighting, Material, PinholeCamera, Primitive, Scene, Window};
 use ipdf_model::{
-    CameraIntrinsics, CellHierarchy, CropGeometry, CropOptions, ModelError, RefineOptions,
+    CHECKPOINT_FILE, CameraIntrinsics, CellHierarchy, CheckpointInfo, CropGeometry, CropOptions,
+    FitOptions, ImplicitPdf, LabelledTranslations, ModelError, RefineOptions,
     TranslationArgmaxOptions, TranslationConfig, TranslationPdf, TranslationPredictor,
     TranslationSpace, TranslationTrainOptions, TranslationTrainer, WorkingVolume, crop_box,
-    crop_object, crops_to_tensor, refine_on,
+    crop_object, crops_to_tensor, fit, refine_on,
 };
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use proptest::prelude::*;
@@ -326,4 +327,111 @@ fn bad_translation_input_gets_typed_errors() {
             )
             .is_err()
     );
+}
+
+#[test]
+fn translation_runs_checkpoint_resume_and_load_only_as_translation_models() {
+    let data = renders(10, 4);
+    let labels = label_sets(&data);
+    let space = TranslationSpace::from_labels(&labels, &data.geometry).unwrap();
+    let mut config = TranslationConfig::small(SIZE as i64, space);
+    config.network.head_sizes = vec![16, 16];
+    let options = TranslationTrainOptions {
+        queries: 64,
+        ..TranslationTrainOptions::default()
+    };
+    let fresh = || {
+        TranslationTrainer::new(
+            TranslationPdf::new(config.clone(), Device::Cpu).unwrap(),
+            options.clone(),
+        )
+        .unwrap()
+    };
+    let examples = LabelledTranslations::new(
+        data.images.shallow_clone(),
+        data.geometry.clone(),
+        labels.clone(),
+    )
+    .unwrap();
+    let fit_options = |epochs| FitOptions {
+        epochs,
+        steps_per_epoch: 2,
+        batch_size: 4,
+        validation_level: 0,
+    };
+    let (whole, split) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let mut trainer = fresh();
+    let reports = fit(
+        &mut trainer,
+        &examples,
+        Some(&examples),
+        &fit_options(2),
+        whole.path(),
+        |_| {},
+    )
+    .unwrap();
+    assert!(
+        reports
+            .iter()
+            .all(|r| r.validation_llh.is_some_and(f64::is_finite))
+    );
+    let mut first = fresh();
+    fit(
+        &mut first,
+        &examples,
+        None,
+        &fit_options(1),
+        split.path(),
+        |_| {},
+    )
+    .unwrap();
+    drop(first);
+    let mut resumed = TranslationTrainer::resume(split.path(), Device::Cpu).unwrap();
+    assert_eq!(resumed.step(), 2);
+    fit(
+        &mut resumed,
+        &examples,
+        None,
+        &fit_options(2),
+        split.path(),
+        |_| {},
+    )
+    .unwrap();
+    let weight =
+        |model: &TranslationPdf| model.var_store().variables()["head.output.weight"].copy();
+    assert!(weight(resumed.model()).equal(&weight(trainer.model())));
+
+    // The space travels with the checkpoint; the loaded model scores as the trained one.
+    let info = CheckpointInfo::read(whole.path()).unwrap();
+    let saved = info.translation.unwrap();
+    // serde_json's default float parser may be one ulp off.
+    let close = |a: &[f64], b: &[f64]| {
+        a.iter()
+            .zip(b)
+            .all(|(x, y)| (x - y).abs() <= 1e-9 * y.abs())
+    };
+    assert!(
+        close(&saved.volume.min, &space.volume.min) && close(&saved.volume.max, &space.volume.max)
+    );
+    assert!(close(&[saved.crop_extent], &[space.crop_extent]));
+    let loaded = TranslationPdf::load(whole.path(), Device::Cpu).unwrap();
+    let image = data.images.get(0);
+    let at = [labels[0][0], labels[0][0] + Vector3::new(5.0, 0.0, 0.0)];
+    let a = TranslationPredictor::new(trainer.model())
+        .scores(&image, &data.geometry[0], &at)
+        .unwrap();
+    let b = TranslationPredictor::new(&loaded)
+        .scores(&image, &data.geometry[0], &at)
+        .unwrap();
+    assert_eq!(a, b);
+    // Each loader refuses the other kind of checkpoint, naming the file.
+    let err = ImplicitPdf::load(whole.path(), Device::Cpu).unwrap_err();
+    assert!(err.to_string().contains(CHECKPOINT_FILE), "{err}");
+    let rotation = tempfile::tempdir().unwrap();
+    ImplicitPdf::new(ipdf_model::ModelConfig::small(16), Device::Cpu)
+        .unwrap()
+        .save(rotation.path())
+        .unwrap();
+    let err = TranslationPdf::load(rotation.path(), Device::Cpu).unwrap_err();
+    assert!(matches!(err, ModelError::Checkpoint { .. }), "{err}");
 }

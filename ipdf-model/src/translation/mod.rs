@@ -10,12 +10,16 @@
 //! - [`TranslationTrainer`]: label sets of translations, each label in its own
 //!   importance-sampled normaliser.
 //! - [`TranslationPredictor`]: the distribution on the octree, `ln p(t | I)`, and the argmax.
+//! - [`LabelledTranslations`]: training data for [`crate::fit`], validated by
+//!   [`translation_validation_llh`].
+mod fit;
 mod geometry;
 mod model;
 mod predict;
 mod train;
 mod volume;
 
+pub use fit::{LabelledTranslations, translation_validation_llh};
 pub use geometry::{CameraIntrinsics, CropBox, CropGeometry, translations_to_tensor};
 pub use model::{TranslationConfig, TranslationPdf, TranslationSpace};
 pub use predict::{TranslationArgmax, TranslationArgmaxOptions, TranslationPredictor};

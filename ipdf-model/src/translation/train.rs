@@ -81,14 +81,35 @@ impl TranslationTrainer {
         model: TranslationPdf,
         options: TranslationTrainOptions,
     ) -> Result<Self, ModelError> {
+        Self::at_step(model, options, 0)
+    }
+
+    pub(crate) fn at_step(
+        model: TranslationPdf,
+        options: TranslationTrainOptions,
+        step: u64,
+    ) -> Result<Self, ModelError> {
         options.validate()?;
         let adam = Adam::new(model.var_store());
         Ok(Self {
             model,
             options,
             adam,
-            step: 0,
+            step,
         })
+    }
+
+    /// The options.
+    pub fn options(&self) -> &TranslationTrainOptions {
+        &self.options
+    }
+
+    pub(crate) fn adam(&self) -> &Adam {
+        &self.adam
+    }
+
+    pub(crate) fn adam_mut(&mut self) -> &mut Adam {
+        &mut self.adam
     }
 
     /// The model.

@@ -1,0 +1,150 @@
+//! Translation training over epochs ([`crate::fit`]): crops with their geometry and translation
+//! label sets, validated by the LLH of the labels on the refined octree.
+use std::path::Path;
+
+use nalgebra::Vector3;
+use tch::{Kind, Tensor};
+
+use super::model::check_translation_sets;
+use super::{CropGeometry, TranslationPdf, TranslationPredictor, TranslationTrainer};
+use crate::fit::{FitOptions, FitTarget};
+use crate::train::StepReport;
+use crate::{ModelError, RefineOptions};
+
+/// The cell size (mm) the validation LLH refines the octree to.
+const VALIDATION_CELL_MM: f64 = 2.0;
+
+/// Crops, where they came from, and their translation label sets (mm).
+#[derive(Debug)]
+pub struct LabelledTranslations {
+    images: Tensor,
+    geometry: Vec<CropGeometry>,
+    label_sets: Vec<Vec<Vector3<f64>>>,
+}
+
+impl LabelledTranslations {
+    /// `images`: `[N, 3, S, S]`, float in `[0, 1]` or 8-bit; one [`CropGeometry`] and one
+    /// non-empty set of finite translations in front of the camera per crop.
+    pub fn new(
+        images: Tensor,
+        geometry: Vec<CropGeometry>,
+        label_sets: Vec<Vec<Vector3<f64>>>,
+    ) -> Result<Self, ModelError> {
+        let size = images.size();
+        if size.len() != 4 || size[1] != 3 || size[2] != size[3] || size[0] == 0 {
+            return Err(ModelError::ImageShape {
+                field: "images",
+                expected: "[N ≥ 1, 3, S, S]".into(),
+                got: format!("{size:?}"),
+            });
+        }
+        if size[0] as usize != label_sets.len() {
+            return Err(ModelError::LabelSet {
+                image: label_sets.len().min(size[0] as usize),
+                reason: format!("{} label sets for {} crops", label_sets.len(), size[0]),
+            });
+        }
+        check_translation_sets(&label_sets, &geometry)?;
+        Ok(Self {
+            images,
+            geometry,
+            label_sets,
+        })
+    }
+
+    /// The number of crops.
+    pub fn len(&self) -> usize {
+        self.label_sets.len()
+    }
+
+    /// Whether there are no crops (never true: [`LabelledTranslations::new`] refuses that).
+    pub fn is_empty(&self) -> bool {
+        self.label_sets.is_empty()
+    }
+
+    /// The label sets.
+    pub fn label_sets(&self) -> &[Vec<Vector3<f64>>] {
+        &self.label_sets
+    }
+
+    /// The crops' geometry.
+    pub fn geometry(&self) -> &[CropGeometry] {
+        &self.geometry
+    }
+
+    /// The crops at `indices` as floats in `[0, 1]`, with their geometry and label sets.
+    pub fn batch(&self, indices: &[usize]) -> (Tensor, Vec<CropGeometry>, Vec<Vec<Vector3<f64>>>) {
+        let index = Tensor::from_slice(&indices.iter().map(|&i| i as i64).collect::<Vec<_>>());
+        let images = self.images.index_select(0, &index);
+        let images = if images.kind() == Kind::Uint8 {
+            images.to_kind(Kind::Float) / 255.0
+        } else {
+            images.to_kind(Kind::Float)
+        };
+        (
+            images,
+            indices.iter().map(|&i| self.geometry[i]).collect(),
+            indices
+                .iter()
+                .map(|&i| self.label_sets[i].clone())
+                .collect(),
+        )
+    }
+}
+
+/// The mean over crops of the mean over each crop's labels of `ln p(t | I)` (per mm³), the
+/// normaliser from the octree refined to cells of at most 2 mm
+/// ([`RefineOptions::translation`]); `−ln |V|` for a uniform density over the volume `V`.
+pub fn translation_validation_llh(
+    model: &TranslationPdf,
+    data: &LabelledTranslations,
+) -> Result<f64, ModelError> {
+    let predictor = TranslationPredictor::new(model);
+    let options = RefineOptions::translation(&model.space().volume, VALIDATION_CELL_MM);
+    let mut total = 0.0;
+    for image in 0..data.len() {
+        let (crop, geometry, sets) = data.batch(&[image]);
+        let distribution = predictor.hierarchical(&crop, &geometry[0], &options)?;
+        let densities = predictor.log_densities(&crop, &geometry[0], &sets[0], &distribution)?;
+        total += densities.iter().sum::<f64>() / densities.len() as f64;
+    }
+    Ok(total / data.len() as f64)
+}
+
+impl FitTarget for TranslationTrainer {
+    type Data = LabelledTranslations;
+
+    fn examples(data: &LabelledTranslations) -> usize {
+        data.len()
+    }
+
+    fn steps_done(&self) -> u64 {
+        self.step()
+    }
+
+    fn seed(&self) -> u64 {
+        self.options().seed
+    }
+
+    fn train_batch(
+        &mut self,
+        data: &LabelledTranslations,
+        indices: &[usize],
+    ) -> Result<StepReport, ModelError> {
+        let (images, geometry, sets) = data.batch(indices);
+        self.train_step(&images, &geometry, &sets)
+    }
+
+    /// [`translation_validation_llh`] (the grid level of `options` is for rotations).
+    fn validation_llh(
+        &self,
+        data: &LabelledTranslations,
+        _options: &FitOptions,
+    ) -> Result<f64, ModelError> {
+        translation_validation_llh(self.model(), data)
+    }
+
+    fn save_to(&self, dir: &Path) -> Result<(), ModelError> {
+        self.save(dir)
+    }
+}
