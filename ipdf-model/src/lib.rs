@@ -18,6 +18,13 @@
 //!   query budget), `ln p(R | I)` at any rotation ([`Predictor::log_densities`], the
 //!   reference's log-likelihood), a bfloat16 head for speed ([`Precision`]), and the most
 //!   likely rotation by gradient ascent ([`Predictor::argmax`]).
+//! - The translation half of a pose: [`TranslationPdf`] `F(t, I)` over the object's
+//!   translation in the camera frame (mm), conditioned on the crop and where it was cut
+//!   ([`CropGeometry`]: the crop's box and the camera intrinsics), queries in the crop's own
+//!   coordinates, Fourier-encoded; a [`WorkingVolume`] set from the training labels, stored in the
+//!   checkpoint, with an octree refined best-first as the rotation grid is ([`refine_on`] takes
+//!   any [`CellHierarchy`]); [`TranslationTrainer`] (label sets, importance-sampled normaliser),
+//!   [`TranslationPredictor`] (distribution, `ln p(t | I)`, argmax).
 //!
 //! ```
 //! use ipdf_model::{ImplicitPdf, ModelConfig, Predictor, RefineOptions, TrainOptions, Trainer};
@@ -42,6 +49,37 @@
 //! // ln p(R | I) at any rotation, with the refined distribution's normaliser.
 //! let log_density = predictor.log_densities(&images.get(0), &[half_turn], &refined)?;
 //! assert!(log_density[0].is_finite());
+//! # Ok::<(), ipdf_model::ModelError>(())
+//! ```
+//!
+//! Translations: crops with where they were cut, labels in mm.
+//!
+//! ```
+//! use ipdf_model::{
+//!     CameraIntrinsics, CropBox, CropGeometry, RefineOptions, TranslationConfig, TranslationPdf,
+//!     TranslationPredictor, TranslationSpace, TranslationTrainOptions, TranslationTrainer,
+//! };
+//! use nalgebra::Vector3;
+//! use tch::{Device, Kind, Tensor};
+//!
+//! let camera = CameraIntrinsics { fx: 600.0, fy: 600.0, cx: 320.0, cy: 240.0 };
+//! let geometry = vec![
+//!     CropGeometry { crop: CropBox { centre_x: 300.0, centre_y: 250.0, side: 90.0 }, intrinsics: camera, width: 640, height: 480 },
+//!     CropGeometry { crop: CropBox { centre_x: 420.0, centre_y: 200.0, side: 60.0 }, intrinsics: camera, width: 640, height: 480 },
+//! ];
+//! let labels = vec![vec![Vector3::new(-30.0, 15.0, 700.0)], vec![Vector3::new(170.0, -70.0, 1050.0)]];
+//! let space = TranslationSpace::from_labels(&labels, &geometry)?; // volume and scale, from labels
+//! let model = TranslationPdf::new(TranslationConfig::small(32, space), Device::Cpu)?;
+//! let options = TranslationTrainOptions { queries: 256, ..Default::default() };
+//! let mut trainer = TranslationTrainer::new(model, options)?;
+//! let images = Tensor::rand([2, 3, 32, 32], (Kind::Float, Device::Cpu));
+//! assert!(trainer.train_step(&images, &geometry, &labels)?.loss.is_finite());
+//!
+//! let model = trainer.into_model();
+//! let predictor = TranslationPredictor::new(&model);
+//! let cells = RefineOptions::translation(&model.space().volume, 2.0); // down to 2 mm cells
+//! let distribution = predictor.hierarchical(&images.get(0), &geometry[0], &cells)?;
+//! assert!((distribution.masses.iter().sum::<f64>() - 1.0).abs() < 1e-9);
 //! # Ok::<(), ipdf_model::ModelError>(())
 //! ```
 mod augment;
@@ -78,7 +116,7 @@ pub use loss::{LabelLoss, QuerySampling, label_set_from_matrices, set_nll};
 pub use model::{ImplicitPdf, ModelConfig};
 pub use optim::LearningRateSchedule;
 pub use predict::{Argmax, ArgmaxOptions, Precision, Predictor, UNDER_RESOLUTION_LIMIT};
-pub use pretrained::load_backbone;
+pub use pretrained::{load_backbone, load_translation_backbone};
 pub use refine::{CellHierarchy, CellMasses, RefineOptions, So3Cells, refine, refine_on};
 pub use train::{StepReport, TrainOptions, Trainer};
 pub use translation::{

@@ -1,8 +1,10 @@
 //! Pretrained backbone weights from a `.safetensors` file with torchvision's parameter names.
 use std::path::Path;
 
+use tch::nn;
+
 use crate::checkpoint::{copy_checked, read_tensors};
-use crate::{ImplicitPdf, ModelError};
+use crate::{EncoderKind, ImplicitPdf, ModelError, TranslationPdf};
 
 /// Loads the encoder's weights (and batch-norm statistics) from `path`, a `.safetensors` file
 /// of a torchvision model's `state_dict` (e.g. `resnet18` or `convnext_tiny`; names such as
@@ -13,10 +15,26 @@ use crate::{ImplicitPdf, ModelError};
 /// Convert a torchvision model once with
 /// `safetensors.torch.save_file(torchvision.models.resnet18(weights="DEFAULT").state_dict(), "resnet18.safetensors")`.
 pub fn load_backbone(model: &mut ImplicitPdf, path: &Path) -> Result<usize, ModelError> {
-    let device = model.device();
-    let mut saved = read_tensors(path, device)?;
-    let mut variables: Vec<(String, tch::Tensor)> = model
-        .var_store()
+    let encoder = model.config().encoder;
+    load_encoder(model.var_store_mut(), encoder, path)
+}
+
+/// [`load_backbone`] for a translation model.
+pub fn load_translation_backbone(
+    model: &mut TranslationPdf,
+    path: &Path,
+) -> Result<usize, ModelError> {
+    let encoder = model.config().network.encoder;
+    load_encoder(model.var_store_mut(), encoder, path)
+}
+
+fn load_encoder(
+    var_store: &mut nn::VarStore,
+    encoder: EncoderKind,
+    path: &Path,
+) -> Result<usize, ModelError> {
+    let mut saved = read_tensors(path, var_store.device())?;
+    let mut variables: Vec<(String, tch::Tensor)> = var_store
         .variables()
         .into_iter()
         .filter_map(|(name, tensor)| {
@@ -32,10 +50,7 @@ pub fn load_backbone(model: &mut ImplicitPdf, path: &Path) -> Result<usize, Mode
             .ok_or_else(|| {
                 ModelError::checkpoint(
                     path,
-                    format!(
-                        "{name}: missing (expected torchvision {} weights)",
-                        model.config().encoder
-                    ),
+                    format!("{name}: missing (expected torchvision {encoder} weights)"),
                 )
             })?;
         copy_checked(variable, &tensor, name, path)?;

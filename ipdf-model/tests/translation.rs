@@ -165,6 +165,14 @@ fn translations_are_learned_to_a_few_millimetres() {
         mean_llh > uniform_llh + 8.0,
         "LLH {mean_llh} vs {uniform_llh}"
     );
+    // The label noise keeps every peak at least as wide as itself: no density above that of
+    // an isotropic Gaussian of its σ at its mode (an unresolved spike scores far above it).
+    let sigma = TranslationTrainOptions::default().label_noise_mm;
+    let sharpest = -1.5 * (std::f64::consts::TAU * sigma * sigma).ln();
+    assert!(
+        mean_llh < sharpest + 1.0,
+        "LLH {mean_llh}, sharpest {sharpest}"
+    );
 
     // On one test crop: the hierarchical distribution against the dense level-6 grid (262,144
     // cells of at most 9 mm), and gradient ascent against the densest cell.
@@ -308,6 +316,13 @@ fn bad_translation_input_gets_typed_errors() {
         loss(&outside, &labels),
         Err(ModelError::CropGeometry { image: 1, .. })
     ));
+    let mut principal = data.geometry.clone();
+    principal[0].intrinsics.cx = 5_000.0;
+    let err = loss(&principal, &labels).unwrap_err();
+    assert!(
+        matches!(err, ModelError::CropGeometry { image: 0, ref reason } if reason.contains("principal point")),
+        "{err}"
+    );
     assert!(matches!(
         TranslationSpace::from_labels(&[], &[]),
         Err(ModelError::LabelSet { .. })

@@ -5,9 +5,11 @@
 //! to the nearest predicted one), averaged over crops.
 use std::path::{Path, PathBuf};
 
+use bop_dataset::BopDataset;
 use indicatif::ProgressBar;
 use ipdf_model::{
-    CellMasses, ImplicitPdf, Predictor, RefineOptions, UNDER_RESOLUTION_LIMIT, default_device,
+    CellMasses, ImplicitPdf, Predictor, RefineOptions, TranslationPdf, UNDER_RESOLUTION_LIMIT,
+    default_device,
 };
 use metrics::{Distribution, GridCell, RECALL_THRESHOLD, maad, recall_maad};
 use serde::{Deserialize, Serialize};
@@ -16,7 +18,9 @@ use so3_grid::Grid;
 use crate::PipelineError;
 use crate::plots::plot_distribution;
 use crate::run_info::RunInfo;
+use crate::training::TRANSLATION_DIR;
 use crate::training_data::{ExampleOptions, Examples, crop_tensor, load_examples, to_unit_floats};
+use crate::translation_eval::{PoseEval, TranslationEval, evaluate_pose, evaluate_translation};
 
 /// Mean scores over the crops evaluated.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -129,6 +133,62 @@ pub struct EvalResult {
     /// Why the scores may mislead: a level too coarse for the model's sharpness.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub warning: Option<String>,
+    /// The scores of the run's translation model (`translation/`), when it has one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub translation: Option<TranslationEval>,
+    /// The two models' scores as a 6D pose, when the run has a translation model.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pose: Option<PoseEval>,
+}
+
+/// The scores of a translation model's run: the JSON of `ipdf eval` on one.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TranslationRunEval {
+    /// The object's name.
+    pub object: String,
+    /// The object's id.
+    pub obj_id: u32,
+    /// The labels the model was trained on.
+    pub labels: String,
+    /// The split scored.
+    pub split: String,
+    /// The scores.
+    pub translation: TranslationEval,
+}
+
+/// Scores the translation model run of `request` on its split (the grid options are for
+/// rotations; translations are refined to 2 mm cells); `progress` advances by one per crop.
+pub fn evaluate_translation_run(
+    request: &EvalRequest,
+    progress: &ProgressBar,
+) -> Result<TranslationRunEval, PipelineError> {
+    let (info, dataset) = run_dataset(request)?;
+    let model = TranslationPdf::load(&request.checkpoint, default_device())?;
+    let size = model.config().network.input_size as usize;
+    let examples = load_examples(
+        &dataset,
+        &ExampleOptions::evaluation(&request.split, info.obj_id, size),
+    )?;
+    progress.set_length(examples.instances.len() as u64);
+    let (translation, _) = evaluate_translation(&model, &examples, progress)?;
+    Ok(TranslationRunEval {
+        object: info.object,
+        obj_id: info.obj_id,
+        labels: info.labels,
+        split: request.split.clone(),
+        translation,
+    })
+}
+
+/// The run's `run.json` (with the request's models folder) and its dataset (the request's copy,
+/// or where it was trained).
+fn run_dataset(request: &EvalRequest) -> Result<(RunInfo, BopDataset), PipelineError> {
+    let mut info = RunInfo::read(&request.checkpoint)?;
+    if let Some(models_dir) = &request.models_dir {
+        info.models_dir.clone_from(models_dir);
+    }
+    let dataset = info.dataset(request.dataset.as_deref())?;
+    Ok((info, dataset))
 }
 
 /// Scores the run of `request` on its split; `progress` has its length set to the crops and
@@ -151,17 +211,48 @@ pub fn evaluate_run(
     } else {
         RefineOptions::to_level(request.level)
     };
-    let mut info = RunInfo::read(&request.checkpoint)?;
-    if let Some(models_dir) = &request.models_dir {
-        info.models_dir.clone_from(models_dir);
-    }
-    let dataset = info.dataset(request.dataset.as_deref())?;
+    let (info, dataset) = run_dataset(request)?;
     let model = ImplicitPdf::load(&request.checkpoint, default_device())?;
     let size = model.config().input_size as usize;
     let options = ExampleOptions::evaluation(&request.split, info.obj_id, size);
     let examples = load_examples(&dataset, &options)?;
-    progress.set_length(examples.instances.len() as u64);
+    let translation_dir = request.checkpoint.join(TRANSLATION_DIR);
+    let translation_model = translation_dir
+        .join(ipdf_model::CHECKPOINT_FILE)
+        .exists()
+        .then(|| TranslationPdf::load(&translation_dir, default_device()))
+        .transpose()?;
+    let passes = if translation_model.is_some() { 2 } else { 1 };
+    progress.set_length(passes * examples.instances.len() as u64);
     let scores = evaluate(&model, &examples, &grid, progress)?;
+    let (translation, pose) = match &translation_model {
+        Some(translation_model) => {
+            if translation_model.config().network.input_size != model.config().input_size {
+                return Err(PipelineError::option(
+                    "checkpoint",
+                    format!(
+                        "{}: the translation model takes {} px crops, the rotation model {}",
+                        translation_dir.display(),
+                        translation_model.config().network.input_size,
+                        model.config().input_size
+                    ),
+                ));
+            }
+            let (translation, argmax) =
+                evaluate_translation(translation_model, &examples, progress)?;
+            let pose = evaluate_pose(
+                &model,
+                &examples,
+                &argmax,
+                &dataset,
+                info.obj_id,
+                (scores.llh, translation.llh),
+                &grid,
+            )?;
+            (Some(translation), Some(pose))
+        }
+        None => (None, None),
+    };
     Ok(EvalResult {
         object: info.object,
         obj_id: info.obj_id,
@@ -191,6 +282,8 @@ pub fn evaluate_run(
                 request.level + 1
             )
         }),
+        translation,
+        pose,
     })
 }
 

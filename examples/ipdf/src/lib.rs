@@ -1,6 +1,6 @@
 //! The `ipdf` command line's library, for programs of your own: training data from BOP datasets
 //! ([`training_data`]), training runs ([`training`]), scores of Implicit-PDF models
-//! ([`evaluation`]), the record of a training run ([`run_info`]), the whole pipeline of
+//! ([`evaluation`]) and of translation models and 6D poses ([`translation_eval`]), the record of a training run ([`run_info`]), the whole pipeline of
 //! `ipdf pipeline` ([`pipeline`]), figures ([`plots`]), `.npy` output ([`npy`]), point-cloud
 //! files ([`cloud_file`]), progress bars and the process allocator. Datasets, synthetic data and
 //! labelling are crates of their own (`bop-dataset`, `synth-data`, `pseudo-label`, none of which
@@ -9,10 +9,12 @@
 //! ```
 //! use ipdf::pipeline::Preset;
 //! use ipdf::plots::plot_training_curves;
+//! use ipdf::training::Target;
 //!
 //! // The quick preset, shortened: what `ipdf pipeline --epochs 2` runs.
-//! let plan = ipdf::pipeline::Plan { epochs: 2, ..Preset::Quick.plan() };
-//! assert_eq!(plan.total_steps(), 100);
+//! let plan = ipdf::pipeline::Plan { epochs: 2, translation_epochs: 2, ..Preset::Quick.plan() };
+//! assert_eq!(plan.total_steps(Target::Rotation), 100);
+//! assert_eq!(plan.total_steps(Target::Translation), 100);
 //! // A run's training curves from its `train_log.csv`.
 //! let log = "epoch,step,loss,learning_rate,validation_llh,seconds,images_per_second\n\
 //!            1,50,3.1,4e-3,-1.2,30,26\n2,100,2.2,2e-3,0.7,30,26\n";
@@ -31,5 +33,6 @@ pub mod progress;
 pub mod run_info;
 pub mod training;
 pub mod training_data;
+pub mod translation_eval;
 
 pub use error::PipelineError;

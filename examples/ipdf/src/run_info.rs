@@ -21,6 +21,9 @@ pub struct RunInfo {
     pub split: String,
     /// `single`, `analytical` or `pseudo`.
     pub labels: String,
+    /// `rotation` or `translation` (absent in runs from before translation models: rotation).
+    #[serde(default = "default_target", skip_serializing_if = "is_rotation")]
+    pub target: String,
     /// The object's id.
     pub obj_id: u32,
     /// The object's name (`dataset_info.json`) or `obj_NNNNNN`.
@@ -31,6 +34,14 @@ pub struct RunInfo {
 
 fn default_models_dir() -> String {
     "models".into()
+}
+
+fn default_target() -> String {
+    "rotation".into()
+}
+
+fn is_rotation(target: &str) -> bool {
+    target == "rotation"
 }
 
 impl RunInfo {

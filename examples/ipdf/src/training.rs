@@ -1,19 +1,52 @@
 //! Training one Implicit-PDF model of one object on a BOP split (`ipdf train`, and each model of
-//! `ipdf pipeline`): the examples of the chosen label source, validation on the ground-truth
-//! symmetry sets where the validation split has them, a run folder that resumes.
+//! `ipdf pipeline`): a rotation model or a translation model ([`Target`]), on the examples of
+//! the chosen label source, validated on the ground truth where the validation split has it, in
+//! a run folder that resumes.
 use std::path::{Path, PathBuf};
 
 use bop_dataset::BopDataset;
 use indicatif::ProgressBar;
 use ipdf_model::{
-    Augmentation, CHECKPOINT_FILE, FitOptions, ImplicitPdf, LabelledImages, LearningRateSchedule,
-    ModelConfig, QuerySampling, TrainOptions, Trainer, default_device, fit, load_backbone,
+    Augmentation, CHECKPOINT_FILE, EpochReport, FitOptions, FitTarget, ImplicitPdf, LabelledImages,
+    LabelledTranslations, LearningRateSchedule, ModelConfig, QuerySampling, TrainOptions, Trainer,
+    TranslationConfig, TranslationPdf, TranslationSpace, TranslationTrainOptions,
+    TranslationTrainer, default_device, fit, load_backbone, load_translation_backbone,
 };
 use serde::{Deserialize, Serialize};
 
 use crate::PipelineError;
 use crate::run_info::RunInfo;
 use crate::training_data::{ExampleOptions, Examples, LabelSource, choose_object, load_examples};
+
+/// Which distribution a model learns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Target {
+    /// The object's orientation, `p(R | I)` on SO(3).
+    Rotation,
+    /// The object's translation in the camera frame, `p(t | I)` over the working volume.
+    Translation,
+    /// Both, as two models: the rotation model in the run folder, the translation model in
+    /// its `translation/` folder.
+    Pose,
+}
+
+impl Target {
+    /// `rotation`, `translation` or `pose`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Rotation => "rotation",
+            Self::Translation => "translation",
+            Self::Pose => "pose",
+        }
+    }
+
+    /// Every target.
+    pub const ALL: [Self; 3] = [Self::Rotation, Self::Translation, Self::Pose];
+}
+
+/// The folder of a pose run's translation model.
+pub const TRANSLATION_DIR: &str = "translation";
 
 /// What to train, on what, and where to keep it.
 #[derive(Debug, Clone, PartialEq)]
@@ -32,7 +65,10 @@ pub struct TrainRequest {
     pub object_name: Option<String>,
     /// The label sets trained on.
     pub labels: LabelSource,
-    /// The network (its `seed` initialises the weights).
+    /// Rotation or translation (a pose is one request of each).
+    pub target: Target,
+    /// The network (its `seed` initialises the weights; translation models use 6 Fourier
+    /// components of their query whatever this says).
     pub model: ModelConfig,
     /// Epochs.
     pub epochs: u64,
@@ -46,10 +82,14 @@ pub struct TrainRequest {
     pub occlusion: bool,
     /// Query rotations per image and step: the rotated grid of this level.
     pub query_level: u8,
+    /// Query translations per image and step (translation models).
+    pub translation_queries: usize,
     /// Steps per turn of a continuous symmetry in analytical label sets.
     pub continuous_steps: usize,
     /// Pretrained encoder weights (`.safetensors`, torchvision names).
     pub pretrained: Option<PathBuf>,
+    /// Validate each epoch on the validation split's first this many crops (`None`: all).
+    pub validation_images: Option<usize>,
     /// The run folder (one with a checkpoint resumes).
     pub out: PathBuf,
     /// Seed of the batches, queries and augmentation.
@@ -67,6 +107,8 @@ pub struct TrainResult {
     pub obj_id: u32,
     /// `single`, `analytical` or `pseudo`.
     pub labels: String,
+    /// `rotation` or `translation`.
+    pub target: String,
     /// Training crops.
     pub train_images: usize,
     /// Validation crops, when there was a validation split.
@@ -77,7 +119,8 @@ pub struct TrainResult {
     pub epochs_run: usize,
     /// The last epoch's mean loss.
     pub loss: Option<f64>,
-    /// The last epoch's validation LLH (dense level-2 grid).
+    /// The last epoch's validation LLH (rotations: dense level-2 grid; translations: density
+    /// per mm³ on the octree refined to 2 mm cells).
     pub validation_llh: Option<f64>,
     /// The last epoch's training speed.
     pub images_per_s: Option<f64>,
@@ -85,8 +128,9 @@ pub struct TrainResult {
     pub seconds: f64,
 }
 
-/// Trains (or resumes) the run of `request`; `progress` advances by one per step. A run folder
-/// holding a run of other data or another network is refused.
+/// Trains (or resumes) the run of `request` (a rotation or a translation model; see
+/// [`Target::Pose`] for both); `progress` advances by one per step. A run folder holding a run
+/// of other data, another target or another network is refused.
 pub fn train_model(
     request: &TrainRequest,
     progress: &ProgressBar,
@@ -110,19 +154,82 @@ pub fn train_model(
         models_dir: request.models_dir.clone(),
         split: request.split.clone(),
         labels: request.labels.name().to_string(),
+        target: request.target.name().to_string(),
         obj_id,
         object: object.clone(),
         occlusion: request.occlusion,
     };
-    let mut trainer = open_trainer(request, &info)?;
-    let train_images = LabelledImages::new(train.crops.shallow_clone(), train.label_sets.clone())?;
-    let validation_images = match &validation {
-        Some(v) => Some(LabelledImages::new(
-            v.crops.shallow_clone(),
-            v.label_sets.clone(),
-        )?),
-        None => None,
+    let (step, reports) = match request.target {
+        Target::Rotation => {
+            let mut trainer = open_trainer(request, &info)?;
+            let data = LabelledImages::new(train.crops.shallow_clone(), train.label_sets.clone())?;
+            let validation = validation
+                .as_ref()
+                .map(|v| {
+                    let n = validated(v, request);
+                    LabelledImages::new(v.crops.narrow(0, 0, n as i64), v.label_sets[..n].to_vec())
+                })
+                .transpose()?;
+            let reports = fit_run(&mut trainer, &data, validation.as_ref(), request, progress)?;
+            (trainer.step(), reports)
+        }
+        Target::Translation => {
+            let translations = |e: &Examples, n: usize| {
+                LabelledTranslations::new(
+                    e.crops.narrow(0, 0, n as i64),
+                    e.geometry[..n].to_vec(),
+                    e.translation_sets[..n].to_vec(),
+                )
+            };
+            let data = translations(&train, train.instances.len())?;
+            let mut trainer = open_translation_trainer(request, &info, &data)?;
+            let validation = validation
+                .as_ref()
+                .map(|v| translations(v, validated(v, request)))
+                .transpose()?;
+            let reports = fit_run(&mut trainer, &data, validation.as_ref(), request, progress)?;
+            (trainer.step(), reports)
+        }
+        Target::Pose => {
+            return Err(PipelineError::option(
+                "target",
+                "a pose is two runs: train the rotation and the translation target",
+            ));
+        }
     };
+    let last = reports.last();
+    Ok(TrainResult {
+        run: request.out.clone(),
+        object,
+        obj_id,
+        labels: request.labels.name().to_string(),
+        target: request.target.name().to_string(),
+        train_images: train.instances.len(),
+        validation_images: validation.as_ref().map(|v| validated(v, request)),
+        step,
+        epochs_run: reports.len(),
+        loss: last.map(|r| r.loss),
+        validation_llh: last.and_then(|r| r.validation_llh),
+        images_per_s: last.map(|r| r.images_per_second),
+        seconds: reports.iter().map(|r| r.seconds).sum(),
+    })
+}
+
+/// How many of `validation`'s crops `request` validates on.
+fn validated(validation: &Examples, request: &TrainRequest) -> usize {
+    let all = validation.instances.len();
+    request.validation_images.map_or(all, |n| n.min(all))
+}
+
+/// [`fit`] with the request's epochs, steps and batch size; `progress` starts at the steps
+/// already done.
+fn fit_run<T: FitTarget>(
+    trainer: &mut T,
+    train: &T::Data,
+    validation: Option<&T::Data>,
+    request: &TrainRequest,
+    progress: &ProgressBar,
+) -> Result<Vec<EpochReport>, PipelineError> {
     let options = FitOptions {
         epochs: request.epochs,
         steps_per_epoch: request.steps_per_epoch,
@@ -130,30 +237,15 @@ pub fn train_model(
         validation_level: 2,
     };
     let total_steps = request.epochs * request.steps_per_epoch;
-    progress.set_position(trainer.step().min(total_steps));
-    let reports = fit(
-        &mut trainer,
-        &train_images,
-        validation_images.as_ref(),
+    progress.set_position(trainer.steps_done().min(total_steps));
+    Ok(fit(
+        trainer,
+        train,
+        validation,
         &options,
         &request.out,
         |_| progress.inc(1),
-    )?;
-    let last = reports.last();
-    Ok(TrainResult {
-        run: request.out.clone(),
-        object,
-        obj_id,
-        labels: request.labels.name().to_string(),
-        train_images: train.instances.len(),
-        validation_images: validation.as_ref().map(|v| v.instances.len()),
-        step: trainer.step(),
-        epochs_run: reports.len(),
-        loss: last.map(|r| r.loss),
-        validation_llh: last.and_then(|r| r.validation_llh),
-        images_per_s: last.map(|r| r.images_per_second),
-        seconds: reports.iter().map(|r| r.seconds).sum(),
-    })
+    )?)
 }
 
 /// Whether the run folder `out` holds a finished run of `total_steps` steps.
@@ -193,17 +285,7 @@ fn validation_examples(
 fn open_trainer(request: &TrainRequest, info: &RunInfo) -> Result<Trainer, PipelineError> {
     let device = default_device();
     let out = &request.out;
-    if out.join(CHECKPOINT_FILE).exists() {
-        let previous = RunInfo::read(out)?;
-        if previous != *info {
-            return Err(PipelineError::option(
-                "out",
-                format!(
-                    "{} holds a run of other data or options ({previous:?}); choose another --out",
-                    out.display()
-                ),
-            ));
-        }
+    if resumes(out, info)? {
         let trainer = Trainer::resume(out, device)?;
         request
             .model
@@ -232,8 +314,79 @@ fn open_trainer(request: &TrainRequest, info: &RunInfo) -> Result<Trainer, Pipel
         seed: request.seed,
         ..TrainOptions::default()
     };
+    start_run(out, info)?;
+    Ok(Trainer::new(model, options)?)
+}
+
+/// Whether `out` holds a checkpoint of the run `info` describes (then it resumes); an error
+/// when it holds one of another run.
+fn resumes(out: &Path, info: &RunInfo) -> Result<bool, PipelineError> {
+    if !out.join(CHECKPOINT_FILE).exists() {
+        return Ok(false);
+    }
+    let previous = RunInfo::read(out)?;
+    if previous != *info {
+        return Err(PipelineError::option(
+            "out",
+            format!(
+                "{} holds a run of other data or options ({previous:?}); choose another --out",
+                out.display()
+            ),
+        ));
+    }
+    Ok(true)
+}
+
+/// Creates the run folder `out` and its `run.json`.
+fn start_run(out: &Path, info: &RunInfo) -> Result<(), PipelineError> {
     std::fs::create_dir_all(out)
         .map_err(|e| bop_dataset::FileError::new(out, "folder", e.to_string()))?;
     info.write(out)?;
-    Ok(Trainer::new(model, options)?)
+    Ok(())
+}
+
+/// The translation trainer of a run folder holding a checkpoint of this run, or of a new run
+/// whose working volume is set from `data`'s labels.
+fn open_translation_trainer(
+    request: &TrainRequest,
+    info: &RunInfo,
+    data: &LabelledTranslations,
+) -> Result<TranslationTrainer, PipelineError> {
+    let device = default_device();
+    let out = &request.out;
+    let network = ModelConfig {
+        fourier_components: 6,
+        ..request.model.clone()
+    };
+    if resumes(out, info)? {
+        let trainer = TranslationTrainer::resume(out, device)?;
+        network.check_same(
+            &trainer.model().config().network,
+            &out.join(CHECKPOINT_FILE),
+        )?;
+        return Ok(trainer);
+    }
+    let space = TranslationSpace::from_labels(data.label_sets(), data.geometry())?;
+    let mut model = TranslationPdf::new(TranslationConfig { network, space }, device)?;
+    if let Some(path) = &request.pretrained {
+        load_translation_backbone(&mut model, path)?;
+    }
+    let total = (request.epochs * request.steps_per_epoch).max(1);
+    let options = TranslationTrainOptions {
+        schedule: LearningRateSchedule {
+            peak: request.learning_rate,
+            warmup_steps: total / 20,
+            total_steps: total,
+        },
+        queries: request.translation_queries,
+        augmentation: if request.occlusion {
+            Augmentation::OCCLUSION
+        } else {
+            Augmentation::COLOUR
+        },
+        seed: request.seed,
+        ..TranslationTrainOptions::default()
+    };
+    start_run(out, info)?;
+    Ok(TranslationTrainer::new(model, options)?)
 }

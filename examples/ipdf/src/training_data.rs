@@ -1,20 +1,21 @@
 //! Training and evaluation data from a BOP split: for every visible instance of one object, a
-//! square RGB crop around its visible mask (`ipdf_model::crop_object`, background black) and
-//! its rotation label set: the ground-truth pose alone (`single`), the pose expanded by the
-//! object's symmetries from `models_info.json` (`analytical`), or the pseudo labels of
-//! `ipdf label` (`pseudo`). The ground-truth symmetry set is kept beside, when the split has
-//! `scene_gt.json`, for evaluation.
+//! square RGB crop around its visible mask (`ipdf_model::crop_object`, background black), where
+//! the crop came from (its box, the image's intrinsics from `scene_camera.json`), and its
+//! rotation and translation label sets: the ground-truth pose alone (`single`), the pose
+//! expanded by the object's symmetries from `models_info.json` (`analytical`), or the pseudo
+//! labels of `ipdf label` (`pseudo`). The ground-truth symmetry set and pose are kept beside,
+//! when the split has `scene_gt.json`, for evaluation.
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use ipdf_model::{CropOptions, crop_object};
-use nalgebra::UnitQuaternion;
+use ipdf_model::{CameraIntrinsics, CropBox, CropGeometry, CropOptions, crop_box, crop_object};
+use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 use tch::{Kind, Tensor};
 
 use bop_dataset::{
-    BopDataset, FileError, PseudoInstance, SceneDir, read_models_info, read_pseudo_gt,
-    read_scene_gt, read_scene_gt_info,
+    BopDataset, FileError, Intrinsics, PseudoInstance, SceneDir, read_models_info, read_pseudo_gt,
+    read_scene_camera, read_scene_gt, read_scene_gt_info,
 };
 use metrics::SymmetryGroup;
 
@@ -96,9 +97,17 @@ pub struct Examples {
     pub crops: Tensor,
     /// One label set per crop.
     pub label_sets: Vec<Vec<UnitQuaternion<f64>>>,
+    /// One set of translation labels per crop (mm, camera frame): the ground-truth translation
+    /// (`single`, `analytical`: a symmetry about the model's origin keeps it) or the pseudo
+    /// labels' translations.
+    pub translation_sets: Vec<Vec<Vector3<f64>>>,
+    /// Where each crop was cut from.
+    pub geometry: Vec<CropGeometry>,
     /// The ground-truth symmetry set per crop (continuous axes in 200 steps), when the split
     /// has ground truth.
     pub truth_sets: Option<Vec<Vec<UnitQuaternion<f64>>>>,
+    /// The ground-truth pose per crop, translation in mm, when the split has ground truth.
+    pub truth_poses: Option<Vec<Isometry3<f64>>>,
     /// Where each crop comes from.
     pub instances: Vec<InstanceRef>,
 }
@@ -107,7 +116,10 @@ pub struct Examples {
 struct Pending {
     at: InstanceRef,
     labels: Vec<UnitQuaternion<f64>>,
+    translations: Vec<Vector3<f64>>,
+    intrinsics: Intrinsics,
     truth: Option<Vec<UnitQuaternion<f64>>>,
+    truth_pose: Option<Isometry3<f64>>,
 }
 
 /// The examples of `options.obj_id` in `options.split` of `dataset`. Pseudo labels missing
@@ -142,20 +154,30 @@ pub fn load_examples(
         let reason = format!("no labelled instance of {place}");
         return Err(PipelineError::option("dataset", reason));
     }
-    let (pending, crops) = crop_instances(dataset, options, pending)?;
+    let (pending, crops): (Vec<Pending>, Vec<FileCrop>) =
+        crop_instances(dataset, options, pending)?;
     if pending.is_empty() {
         let reason = format!("every instance of {place} has an empty visible mask");
         return Err(PipelineError::option("dataset", reason));
     }
     let size = options.input_size as i64;
-    let crops = Tensor::from_slice(&crops.concat())
+    let geometry = pending
+        .iter()
+        .zip(&crops)
+        .map(|(p, crop)| crop.geometry(&p.intrinsics))
+        .collect();
+    let pixels: Vec<u8> = crops.into_iter().flat_map(|crop| crop.pixels).collect();
+    let crops = Tensor::from_slice(&pixels)
         .reshape([pending.len() as i64, 3, size, size])
         .to_kind(Kind::Uint8);
     let has_truth = pending.iter().all(|p| p.truth.is_some());
     Ok(Examples {
         crops,
         truth_sets: has_truth.then(|| pending.iter().filter_map(|p| p.truth.clone()).collect()),
+        truth_poses: has_truth.then(|| pending.iter().filter_map(|p| p.truth_pose).collect()),
         label_sets: pending.iter().map(|p| p.labels.clone()).collect(),
+        translation_sets: pending.iter().map(|p| p.translations.clone()).collect(),
+        geometry,
         instances: pending.iter().map(|p| p.at).collect(),
     })
 }
@@ -179,6 +201,7 @@ fn scene_instances(
         LabelSource::Pseudo => Some(read_scene_pseudo_gt(dataset, &scene, &options.split)?),
         _ => None,
     };
+    let cameras = read_scene_camera(&scene.camera_path())?;
     // Which object each mask shows: from the ground truth, or from the pseudo labels.
     let object_ids: BTreeMap<u32, Vec<u32>> = match (&gt, &pseudo) {
         (Some(gt), _) => gt
@@ -208,20 +231,35 @@ fn scene_instances(
                 continue;
             }
             let truth = gt.as_ref().and_then(|gt| gt.get(&im_id)?.get(instance));
+            let millimetres = |pose: &Isometry3<f64>| pose.translation.vector * 1000.0;
             let labels = match options.labels {
-                LabelSource::Single => truth.map(|t| vec![t.pose.rotation]),
+                LabelSource::Single => {
+                    truth.map(|t| (vec![t.pose.rotation], vec![millimetres(&t.pose)]))
+                }
                 LabelSource::Analytical => truth.map(|t| {
                     let symmetries = group.rotations(options.continuous_steps);
-                    symmetries.iter().map(|s| t.pose.rotation * s).collect()
+                    let rotations = symmetries.iter().map(|s| t.pose.rotation * s).collect();
+                    (rotations, vec![millimetres(&t.pose)])
                 }),
                 LabelSource::Pseudo => pseudo
                     .as_ref()
                     .and_then(|p| p.get(&im_id)?.get(instance))
-                    .map(|p| p.labels.iter().map(|l| l.pose.rotation).collect()),
+                    .map(|p| {
+                        let rotations = p.labels.iter().map(|l| l.pose.rotation).collect();
+                        let translations = p.labels.iter().map(|l| millimetres(&l.pose)).collect();
+                        (rotations, translations)
+                    }),
             };
-            let Some(labels) = labels.filter(|l: &Vec<_>| !l.is_empty()) else {
+            let Some((labels, translations)) = labels.filter(|l| !l.0.is_empty()) else {
                 continue;
             };
+            let intrinsics = *cameras.get(&im_id).ok_or_else(|| {
+                FileError::new(
+                    &scene.camera_path(),
+                    format!("{im_id}"),
+                    "missing: the image's intrinsics",
+                )
+            })?;
             out.push(Pending {
                 at: InstanceRef {
                     scene_id,
@@ -229,7 +267,11 @@ fn scene_instances(
                     instance,
                 },
                 labels,
+                translations,
+                intrinsics,
                 truth: truth.map(|t| group.expand(&t.pose.rotation)),
+                truth_pose: truth
+                    .map(|t| Isometry3::from_parts(millimetres(&t.pose).into(), t.pose.rotation)),
             });
         }
     }
@@ -260,8 +302,8 @@ fn crop_instances(
     dataset: &BopDataset,
     options: &ExampleOptions,
     pending: Vec<Pending>,
-) -> Result<(Vec<Pending>, Vec<Vec<u8>>), PipelineError> {
-    let crops: Vec<Option<Vec<u8>>> = pending
+) -> Result<(Vec<Pending>, Vec<FileCrop>), PipelineError> {
+    let crops: Vec<Option<FileCrop>> = pending
         .par_iter()
         .map(|p| {
             let scene = dataset.scene(&options.split, p.at.scene_id);
@@ -342,9 +384,39 @@ impl From<CropError> for PipelineError {
     }
 }
 
+/// A crop of an image file and where it was cut from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FileCrop {
+    /// 8-bit `[3, size, size]` values, channel-major.
+    pub pixels: Vec<u8>,
+    /// The square it was cut from (`ipdf_model::crop_box`).
+    pub crop_box: CropBox,
+    /// The image's width, pixels.
+    pub width: usize,
+    /// The image's height, pixels.
+    pub height: usize,
+}
+
+impl FileCrop {
+    /// The crop's geometry with the image's intrinsics.
+    pub fn geometry(&self, intrinsics: &Intrinsics) -> CropGeometry {
+        CropGeometry {
+            crop: self.crop_box,
+            intrinsics: CameraIntrinsics {
+                fx: intrinsics.fx,
+                fy: intrinsics.fy,
+                cx: intrinsics.cx,
+                cy: intrinsics.cy,
+            },
+            width: self.width,
+            height: self.height,
+        }
+    }
+}
+
 /// The 8-bit `[3, size, size]` crop (channel-major) of the colour image at `rgb` around the
-/// mask at `mask` (`ipdf_model::crop_object`).
-pub fn crop_files(rgb: &Path, mask: &Path, size: usize) -> Result<Vec<u8>, CropError> {
+/// mask at `mask` (`ipdf_model::crop_object`), with its box.
+pub fn crop_files(rgb: &Path, mask: &Path, size: usize) -> Result<FileCrop, CropError> {
     let colour = bop_dataset::read_rgb(rgb).map_err(PipelineError::from)?;
     let visible = bop_dataset::read_mask(mask).map_err(PipelineError::from)?;
     if (visible.width, visible.height) != (colour.width, colour.height) {
@@ -368,17 +440,23 @@ pub fn crop_files(rgb: &Path, mask: &Path, size: usize) -> Result<Vec<u8>, CropE
 }
 
 /// The 8-bit `[3, size, size]` crop (`ipdf_model::crop_object`) of a row-major RGB image
-/// around the true pixels of `mask`.
+/// around the true pixels of `mask`, with its box.
 fn crop_bytes(
     rgb: &[u8],
     mask: &[bool],
     width: usize,
     height: usize,
     size: usize,
-) -> Result<Vec<u8>, ipdf_model::ModelError> {
+) -> Result<FileCrop, ipdf_model::ModelError> {
     let mask: Vec<u8> = mask.iter().map(|&m| u8::from(m)).collect();
-    let values = crop_object(rgb, &mask, width, height, &CropOptions::new(size))?;
-    Ok(values.iter().map(|v| (v * 255.0).round() as u8).collect())
+    let options = CropOptions::new(size);
+    let values = crop_object(rgb, &mask, width, height, &options)?;
+    Ok(FileCrop {
+        pixels: values.iter().map(|v| (v * 255.0).round() as u8).collect(),
+        crop_box: crop_box(&mask, width, height, &options)?,
+        width,
+        height,
+    })
 }
 
 /// An 8-bit crop from [`crop_files`] as the `[3, S, S]` float tensor in `[0, 1]` the model takes.
@@ -414,17 +492,31 @@ pub fn rendered_examples(
     };
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let (width, height) = (camera.width as usize, camera.height as usize);
+    let intrinsics = Intrinsics {
+        fx: camera.fx,
+        fy: camera.fy,
+        cx: camera.cx,
+        cy: camera.cy,
+        depth_scale: 1.0,
+    };
     let (mut crops, mut sets, mut instances) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut geometry, mut poses) = (Vec::new(), Vec::new());
     for im_id in 0..count as u32 {
         let frame =
             renderer.render(&camera, &synth_data::ViewRange::default(), &style, &mut rng)?;
-        crops.extend(crop_bytes(
+        let crop = crop_bytes(
             frame.rgb.as_flattened(),
             &frame.mask_visib,
             width,
             height,
             size,
-        )?);
+        )?;
+        geometry.push(crop.geometry(&intrinsics));
+        crops.extend(crop.pixels);
+        poses.push(Isometry3::from_parts(
+            (frame.pose.translation.vector * 1000.0).into(),
+            frame.pose.rotation,
+        ));
         sets.push(object.symmetry.expand(&frame.pose.rotation));
         instances.push(InstanceRef {
             scene_id: 0,
@@ -436,7 +528,10 @@ pub fn rendered_examples(
     Ok(Examples {
         crops: Tensor::from_slice(&crops).reshape([count as i64, 3, s, s]),
         label_sets: sets.clone(),
+        translation_sets: poses.iter().map(|p| vec![p.translation.vector]).collect(),
+        geometry,
         truth_sets: Some(sets),
+        truth_poses: Some(poses),
         instances,
     })
 }

@@ -83,8 +83,31 @@ fn a_miniature_pipeline_writes_every_artefact() {
                 (1200, 480)
             );
             assert!(markdown.contains(&format!("figures/{stem}.png")));
+            // Analytical and Pseudo runs are 6D poses: a translation model beside the rotation
+            // one, its scores and its figure. Single's would be Analytical's (same translations).
+            let translation = &scores["translation"];
+            let figure = out.join("figures").join(format!("{stem}_translation.png"));
+            if labels == "single" {
+                assert!(translation.is_null() && !figure.exists(), "{scores}");
+                continue;
+            }
+            let error = translation["median_error_mm"].as_f64().unwrap();
+            let llh = translation["llh"].as_f64().unwrap();
+            assert!(
+                error >= 0.0 && error.is_finite() && llh.is_finite(),
+                "{translation}"
+            );
+            let joint = scores["pose"]["joint_llh"].as_f64().unwrap();
+            assert!((joint - llh - scores["llh"].as_f64().unwrap()).abs() < 1e-9);
+            let auc = scores["pose"]["add_s_auc"].as_f64().unwrap();
+            assert!((0.0..=1.0).contains(&auc), "{scores}");
+            let log = std::fs::read_to_string(run.join("translation/train_log.csv")).unwrap();
+            assert_eq!(log.lines().count(), 3, "{log}");
+            assert_eq!(png_size(&figure), (1000, 520));
+            assert!(markdown.contains(&format!("figures/{stem}_translation.png")));
         }
     }
+    assert!(markdown.contains("## Translation and 6D pose"));
     // The pseudo-label errors of both datasets, one panel each.
     assert_eq!(png_size(&out.join("figures/label_errors.png")), (1120, 460));
     assert!(markdown.contains("figures/label_errors.png"));

@@ -52,7 +52,8 @@ pub(crate) const FEATURES: i64 = 3;
 
 impl CropGeometry {
     /// Checks that every value is finite, focal lengths and the side are positive, and the
-    /// crop's centre lies in the image; `image` names the image in the error.
+    /// principal point and the crop's centre lie in the image; `image` names the image in the
+    /// error.
     pub fn validate(&self, image: usize) -> Result<(), ModelError> {
         let k = &self.intrinsics;
         let c = &self.crop;
@@ -63,6 +64,13 @@ impl CropGeometry {
             Some(format!(
                 "focal lengths {} and {} and crop side {}: need > 0",
                 k.fx, k.fy, c.side
+            ))
+        } else if !(0.0..=self.width as f64).contains(&k.cx)
+            || !(0.0..=self.height as f64).contains(&k.cy)
+        {
+            Some(format!(
+                "principal point ({}, {}) lies outside the {} × {} image",
+                k.cx, k.cy, self.width, self.height
             ))
         } else if !(0.0..=self.width as f64).contains(&c.centre_x)
             || !(0.0..=self.height as f64).contains(&c.centre_y)

@@ -190,6 +190,19 @@ impl<'m> TranslationPredictor<'m> {
         geometry: &CropGeometry,
         options: &TranslationArgmaxOptions,
     ) -> Result<TranslationArgmax, ModelError> {
+        let masses = self.hierarchical(image, geometry, &options.refine)?;
+        self.argmax_from(image, geometry, &masses, options)
+    }
+
+    /// [`Self::argmax`] from the crop's hierarchical distribution `masses`, already evaluated
+    /// (with `options.refine`): the same result without evaluating it again.
+    pub fn argmax_from(
+        &self,
+        image: &Tensor,
+        geometry: &CropGeometry,
+        masses: &CellMasses,
+        options: &TranslationArgmaxOptions,
+    ) -> Result<TranslationArgmax, ModelError> {
         if options.starts == 0 || !(options.step_size >= 0.0 && options.step_size.is_finite()) {
             return Err(ModelError::option(
                 "starts",
@@ -200,7 +213,6 @@ impl<'m> TranslationPredictor<'m> {
             ));
         }
         let terms = self.terms(image, geometry)?;
-        let masses = self.hierarchical_for(&terms, &options.refine)?;
         let volume = self.model.space().volume;
         let starts = masses
             .densest_in(&volume, options.starts)

@@ -31,13 +31,21 @@ pub struct TranslationTrainOptions {
     pub queries: usize,
     /// Image augmentation (the crop geometry is left as it is).
     pub augmentation: Augmentation,
+    /// Standard deviation (mm) of the Gaussian noise added to each label, per axis and step
+    /// (1 mm). The label itself sits in its own normaliser, so without noise nothing stops a
+    /// peak from growing narrower than any grid can resolve: trained so, the pipeline's bowl
+    /// models put their mass on a ridge thinner than the 2 mm scoring cells (validation LLH +49
+    /// nats per mm³, argmax 134 mm off). With noise the model learns the labels' density
+    /// blurred by it, which 2 mm cells resolve.
+    #[serde(default)]
+    pub label_noise_mm: f64,
     /// Seed of the queries and augmentation (step `s` uses ChaCha8 stream `s`).
     pub seed: u64,
 }
 
 impl Default for TranslationTrainOptions {
     /// Learning rate 1e-3 (100 warm-up steps, cosine to 0 at 2,000), clipping at 5, 4,096
-    /// queries, colour jitter, seed 0.
+    /// queries, colour jitter, 1 mm label noise, seed 0.
     fn default() -> Self {
         Self {
             schedule: LearningRateSchedule {
@@ -48,6 +56,7 @@ impl Default for TranslationTrainOptions {
             clip_norm: 5.0,
             queries: 4_096,
             augmentation: Augmentation::COLOUR,
+            label_noise_mm: 1.0,
             seed: 0,
         }
     }
@@ -61,6 +70,15 @@ impl TranslationTrainOptions {
             return Err(ModelError::option(
                 "queries",
                 format!("{}: need 2..=1048576 queries", self.queries),
+            ));
+        }
+        if !(self.label_noise_mm >= 0.0 && self.label_noise_mm.is_finite()) {
+            return Err(ModelError::option(
+                "label_noise_mm",
+                format!(
+                    "{}: need a finite standard deviation ≥ 0",
+                    self.label_noise_mm
+                ),
             ));
         }
         Ok(())
@@ -171,9 +189,17 @@ impl TranslationTrainer {
         let mut labels = Vec::with_capacity(label_sets.len() * longest);
         let mut label_log_q = Vec::with_capacity(labels.capacity());
         let mut mask = Vec::with_capacity(labels.capacity());
+        let noise = if train {
+            self.options.label_noise_mm
+        } else {
+            0.0
+        };
         for set in label_sets {
             for k in 0..longest {
-                let t = set[k.min(set.len() - 1)];
+                let t = set[k.min(set.len() - 1)] + standard_normal(rng) * noise;
+                let t = t
+                    .sup(&Vector3::from(space.volume.min))
+                    .inf(&Vector3::from(space.volume.max));
                 labels.extend([t.x, t.y, t.z]);
                 label_log_q.push(log_proposal(&space, &set[0], &t));
                 mask.push(if k < set.len() { 1.0 } else { 0.0 });

@@ -1,11 +1,14 @@
 //! `ipdf eval`: LLH, MAAD and Recall MAAD of a trained model on a split with ground truth,
-//! against the full ground-truth symmetry set of each instance.
+//! against the full ground-truth symmetry set of each instance; translation LLH and errors of a
+//! translation model; and for a pose run (a rotation model with one in `translation/`) both,
+//! with the joint LLH and the ADD-S AUC.
 use std::path::PathBuf;
 
 use anyhow::Result;
 use bop_dataset::write_json;
-use ipdf::evaluation::{EvalRequest, evaluate_run};
+use ipdf::evaluation::{EvalRequest, evaluate_run, evaluate_translation_run};
 use ipdf::progress::bar;
+use ipdf::translation_eval::is_translation_run;
 
 /// Arguments of `ipdf eval`.
 #[derive(Debug, clap::Args)]
@@ -46,13 +49,18 @@ pub fn run(args: &EvalArgs) -> Result<serde_json::Value> {
         dense: args.dense,
     };
     let progress = bar(0, "images");
-    let result = evaluate_run(&request, &progress)?;
+    let result = if is_translation_run(&args.checkpoint)? {
+        serde_json::to_value(evaluate_translation_run(&request, &progress)?)?
+    } else {
+        let result = evaluate_run(&request, &progress)?;
+        if let Some(warning) = &result.warning {
+            eprintln!("warning: {warning}");
+        }
+        serde_json::to_value(result)?
+    };
     progress.finish_and_clear();
-    if let Some(warning) = &result.warning {
-        eprintln!("warning: {warning}");
-    }
     if let Some(path) = &args.out {
         write_json(path, &result)?;
     }
-    Ok(serde_json::to_value(result)?)
+    Ok(result)
 }

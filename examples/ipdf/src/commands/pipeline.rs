@@ -29,9 +29,13 @@ pub struct PipelineArgs {
     /// Override the preset's frames per object of the textured dataset.
     #[arg(long)]
     pub texture_frames: Option<usize>,
-    /// Override the preset's epochs.
+    /// Override the preset's epochs (of the translation models too, unless
+    /// --translation-epochs is given).
     #[arg(long)]
     pub epochs: Option<u64>,
+    /// Override the preset's epochs of the translation models.
+    #[arg(long)]
+    pub translation_epochs: Option<u64>,
     /// Override the preset's steps per epoch.
     #[arg(long)]
     pub steps_per_epoch: Option<u64>,
@@ -45,6 +49,10 @@ pub fn run(args: &PipelineArgs, seed: u64) -> Result<serde_json::Value> {
         val_frames: args.val_frames.unwrap_or(preset.val_frames),
         texture_frames: args.texture_frames.unwrap_or(preset.texture_frames),
         epochs: args.epochs.unwrap_or(preset.epochs),
+        translation_epochs: args
+            .translation_epochs
+            .or(args.epochs)
+            .unwrap_or(preset.translation_epochs),
         steps_per_epoch: args.steps_per_epoch.unwrap_or(preset.steps_per_epoch),
         ..preset
     };

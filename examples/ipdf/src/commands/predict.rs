@@ -1,14 +1,20 @@
 //! `ipdf predict`: the distribution over SO(3) of a trained model for one object in one image
-//! (`.npy`, in the cell order of `ipdf grid`), and its most likely rotation (JSON).
-use std::path::PathBuf;
+//! (`.npy`, in the cell order of `ipdf grid`), and its most likely rotation (JSON); for a
+//! translation model, or a pose run (a rotation model with one in `translation/`), the
+//! distribution over translations too and the most likely translation (`cam_t_m2c`, mm).
+use std::path::{Path, PathBuf};
 
 use super::check_extension;
-use anyhow::Result;
+use anyhow::{Context, Result, bail};
 use bop_dataset::write_json;
 use ipdf::npy::write_f32;
-use ipdf::training_data::{crop_files, crop_tensor};
-use ipdf_model::{ArgmaxOptions, ImplicitPdf, Predictor, default_device};
-use serde_json::json;
+use ipdf::training::TRANSLATION_DIR;
+use ipdf::training_data::{FileCrop, crop_files, crop_tensor};
+use ipdf::translation_eval::{self, is_translation_run};
+use ipdf_model::{
+    ArgmaxOptions, CropGeometry, ImplicitPdf, Predictor, TranslationPdf, default_device,
+};
+use serde_json::{Value, json};
 use so3_grid::{Grid, rotation_to_matrix, rotation_to_wxyz};
 
 /// Arguments of `ipdf predict`.
@@ -23,28 +29,95 @@ pub struct PredictArgs {
     /// The object's mask in it (non-zero on the object).
     #[arg(long)]
     pub mask: PathBuf,
-    /// Grid level of the distribution (4: 294,912 rotations).
+    /// The camera's intrinsics in pixels, `fx,fy,cx,cy` (BOP's cam_K): needed by translation
+    /// models (without it, a pose run predicts the orientation only).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub intrinsics: Option<Vec<f64>>,
+    /// Grid level of the rotation distribution (4: 294,912 rotations).
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(0..=5))]
     pub level: u8,
-    /// The distribution: float32 probabilities, one per cell of `ipdf grid --level L`; the
-    /// most likely rotation goes beside it as JSON (same name, `.json`).
+    /// The rotation distribution: float32 probabilities, one per cell of `ipdf grid --level L`.
+    /// A translation distribution goes beside it as `<name>_translation.npy` (one row per
+    /// octree cell: x, y, z of its centre in mm, its level, its probability), the most likely
+    /// pose as JSON (same name, `.json`).
     #[arg(long)]
     pub out: PathBuf,
 }
 
-/// Runs `ipdf predict`; returns `{"argmax": {"quaternion_wxyz", "cam_R_m2c", "score"}, "level",
-/// "cells", "densest": [{"quaternion_wxyz", "probability"}, …]}`.
-pub fn run(args: &PredictArgs) -> Result<serde_json::Value> {
+/// Runs `ipdf predict`; returns `{"argmax": {"quaternion_wxyz", "cam_R_m2c", "cam_t_m2c",
+/// "score"}, "level", "cells", "densest": [{"quaternion_wxyz", "probability"}, …],
+/// "translation": {"cells", "distribution", "score"}}` with the parts the run's models give.
+pub fn run(args: &PredictArgs) -> Result<Value> {
     check_extension(
         "--out",
         &args.out,
         "npy",
-        "the distribution (a NumPy array; the most likely rotation goes beside it as .json)",
+        "the distribution (a NumPy array; the most likely pose goes beside it as .json)",
     )?;
-    let model = ImplicitPdf::load(&args.checkpoint, default_device())?;
-    let size = model.config().input_size as usize;
-    let crop = crop_tensor(&crop_files(&args.rgb, &args.mask, size)?, size);
-    let mut predictor = Predictor::new(&model);
+    let translation_only = is_translation_run(&args.checkpoint)?;
+    let rotation = if translation_only {
+        None
+    } else {
+        Some(ImplicitPdf::load(&args.checkpoint, default_device())?)
+    };
+    let translation_dir = if translation_only {
+        args.checkpoint.clone()
+    } else {
+        args.checkpoint.join(TRANSLATION_DIR)
+    };
+    let mut translation = translation_dir
+        .join(ipdf_model::CHECKPOINT_FILE)
+        .exists()
+        .then(|| TranslationPdf::load(&translation_dir, default_device()))
+        .transpose()?;
+    // A pose run without intrinsics predicts the orientation, and says so once it has.
+    let skipped = rotation.is_some() && translation.is_some() && args.intrinsics.is_none();
+    if skipped {
+        translation = None;
+    }
+    let size = match (&rotation, &translation) {
+        (Some(model), _) => model.config().input_size,
+        (None, Some(model)) => model.config().network.input_size,
+        (None, None) => bail!("{}: no model", args.checkpoint.display()),
+    } as usize;
+    let crop = crop_files(&args.rgb, &args.mask, size)?;
+    // Every input is checked before anything is written.
+    let geometry = match &translation {
+        Some(model) => {
+            if model.config().network.input_size as usize != size {
+                bail!(
+                    "{}: the translation model takes {} px crops, the rotation model {size}",
+                    translation_dir.display(),
+                    model.config().network.input_size
+                );
+            }
+            Some(crop_geometry(&crop, args)?)
+        }
+        None => None,
+    };
+    let mut result = json!({});
+    if let Some(model) = &rotation {
+        result = predict_rotation(model, &crop, args)?;
+    }
+    if let (Some(model), Some(geometry)) = (&translation, &geometry) {
+        let (argmax, summary) = predict_translation(model, &crop, geometry, args)?;
+        result["argmax"]["cam_t_m2c"] = argmax;
+        result["translation"] = summary;
+    }
+    write_json(&args.out.with_extension("json"), &result)?;
+    if skipped {
+        eprintln!(
+            "ipdf predict: no --intrinsics, so the orientation only (the translation model of {} \
+             needs the camera's fx,fy,cx,cy)",
+            translation_dir.display()
+        );
+    }
+    Ok(result)
+}
+
+fn predict_rotation(model: &ImplicitPdf, crop: &FileCrop, args: &PredictArgs) -> Result<Value> {
+    let crop = crop_tensor(&crop.pixels, model.config().input_size as usize);
+    let mut predictor = Predictor::new(model);
     let masses = predictor.probabilities(&crop, args.level)?;
     write_f32(&args.out, &[masses.len() as u64], &masses)?;
     let best = predictor.argmax(&crop, &ArgmaxOptions::default())?;
@@ -59,7 +132,7 @@ pub fn run(args: &PredictArgs) -> Result<serde_json::Value> {
             Ok(json!({"quaternion_wxyz": rotation_to_wxyz(&rotation), "probability": masses[i]}))
         })
         .collect::<Result<Vec<_>>>()?;
-    let result = json!({
+    Ok(json!({
         "argmax": {
             "quaternion_wxyz": rotation_to_wxyz(&best.rotation),
             "cam_R_m2c": rotation_to_matrix(&best.rotation),
@@ -68,7 +141,73 @@ pub fn run(args: &PredictArgs) -> Result<serde_json::Value> {
         "level": args.level,
         "cells": masses.len(),
         "densest": densest,
+    }))
+}
+
+/// Where the crop lies in the image of `--intrinsics` (checked).
+fn crop_geometry(crop: &FileCrop, args: &PredictArgs) -> Result<CropGeometry> {
+    let Some(values) = args.intrinsics.as_deref() else {
+        bail!(
+            "--intrinsics fx,fy,cx,cy: needed by the translation model of {} (the camera's cam_K)",
+            args.checkpoint.display()
+        );
+    };
+    let &[fx, fy, cx, cy] = values else {
+        bail!(
+            "--intrinsics: 4 numbers fx,fy,cx,cy (the camera's cam_K), got {}",
+            values.len()
+        );
+    };
+    let geometry = crop.geometry(&bop_dataset::Intrinsics {
+        fx,
+        fy,
+        cx,
+        cy,
+        depth_scale: 1.0,
     });
-    write_json(&args.out.with_extension("json"), &result)?;
-    Ok(result)
+    geometry
+        .validate(0)
+        .with_context(|| format!("--intrinsics {fx},{fy},{cx},{cy}"))?;
+    Ok(geometry)
+}
+
+/// The most likely translation (`cam_t_m2c`, mm) and the summary of the distribution written
+/// beside `--out`.
+fn predict_translation(
+    model: &TranslationPdf,
+    crop: &FileCrop,
+    geometry: &CropGeometry,
+    args: &PredictArgs,
+) -> Result<(Value, Value)> {
+    let image = crop_tensor(&crop.pixels, model.config().network.input_size as usize);
+    let prediction = translation_eval::predict_translation(model, &image, geometry)?;
+    let (centres, distribution) = (&prediction.centres, &prediction.distribution);
+    let rows: Vec<f64> = centres
+        .iter()
+        .zip(&distribution.cells)
+        .zip(&distribution.masses)
+        .flat_map(|((c, &(level, _)), &mass)| [c.x, c.y, c.z, f64::from(level), mass])
+        .collect();
+    let path = translation_path(&args.out);
+    write_f32(&path, &[centres.len() as u64, 5], &rows)?;
+    let best = prediction.argmax;
+    let t = best.translation;
+    Ok((
+        json!([t.x, t.y, t.z]),
+        json!({
+            "cam_t_m2c": [t.x, t.y, t.z],
+            "score": best.score,
+            "cells": centres.len(),
+            "distribution": path,
+        }),
+    ))
+}
+
+/// `<out>_translation.npy` beside `<out>.npy`.
+fn translation_path(out: &Path) -> PathBuf {
+    let stem = out
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    out.with_file_name(format!("{stem}_translation.npy"))
 }

@@ -1,11 +1,12 @@
 //! `ipdf train`: an Implicit-PDF model of one object from a BOP dataset, on single, analytical
-//! or pseudo label sets; resumes a run folder that holds a checkpoint.
+//! or pseudo label sets, of its rotation, its translation or both; resumes a run folder that
+//! holds a checkpoint.
 use super::choice::choice;
 use std::path::PathBuf;
 
 use anyhow::{Result, bail};
 use ipdf::progress::bar;
-use ipdf::training::{TrainRequest, train_model};
+use ipdf::training::{TRANSLATION_DIR, Target, TrainRequest, train_model};
 use ipdf::training_data::LabelSource;
 use ipdf_model::{EncoderKind, ModelConfig};
 
@@ -30,6 +31,10 @@ pub struct TrainArgs {
     /// the pseudo labels of `ipdf label`.
     #[arg(long, value_parser = choice::<LabelSource>())]
     pub labels: LabelSource,
+    /// What the model learns: the object's rotation, its translation (camera frame, mm), or
+    /// both (the rotation model in --out, the translation model in --out/translation).
+    #[arg(long, default_value = "rotation", value_parser = choice::<Target>())]
+    pub target: Target,
     /// Run folder: checkpoint, run.json, train_log.csv (a folder with a checkpoint resumes).
     #[arg(long)]
     pub out: PathBuf,
@@ -77,6 +82,10 @@ pub struct TrainArgs {
     /// reference; 1: 576 for quick CPU runs).
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(0..=3))]
     pub query_level: u8,
+    /// Query translations per image and step (translation models): the label's, the rest
+    /// drawn around it and over the working volume.
+    #[arg(long, default_value_t = 4_096, value_parser = clap::value_parser!(u64).range(2..=1_048_576))]
+    pub translation_queries: u64,
     /// Steps per turn of a continuous symmetry in analytical label sets.
     #[arg(long, default_value_t = 36)]
     pub continuous_steps: usize,
@@ -85,7 +94,8 @@ pub struct TrainArgs {
     pub pretrained: Option<PathBuf>,
 }
 
-/// Runs `ipdf train`; returns the last epoch's figures ([`TrainResult`]).
+/// Runs `ipdf train`; returns the last epoch's figures ([`TrainResult`]; for `--target pose`
+/// `{"rotation": …, "translation": …}`).
 pub fn run(args: &TrainArgs, seed: u64) -> Result<serde_json::Value> {
     if args.continuous_steps == 0 {
         bail!("--continuous-steps must be at least 1");
@@ -104,6 +114,7 @@ pub fn run(args: &TrainArgs, seed: u64) -> Result<serde_json::Value> {
         obj_id: args.obj_id,
         object_name: args.object.clone(),
         labels: args.labels,
+        target: args.target,
         model: ModelConfig {
             encoder: args.encoder,
             input_size: args.input_size as i64,
@@ -117,13 +128,31 @@ pub fn run(args: &TrainArgs, seed: u64) -> Result<serde_json::Value> {
         learning_rate: args.learning_rate,
         occlusion: args.occlusion,
         query_level: args.query_level,
+        translation_queries: args.translation_queries as usize,
         continuous_steps: args.continuous_steps,
         pretrained: args.pretrained.clone(),
+        validation_images: None,
         out: args.out.clone(),
         seed,
     };
-    let progress = bar(args.epochs * args.steps_per_epoch, "steps");
-    let result = train_model(&request, &progress)?;
-    progress.finish_and_clear();
-    Ok(serde_json::to_value(result)?)
+    let train = |target: Target, out: PathBuf| -> Result<serde_json::Value> {
+        let progress = bar(args.epochs * args.steps_per_epoch, "steps");
+        let result = train_model(
+            &TrainRequest {
+                target,
+                out,
+                ..request.clone()
+            },
+            &progress,
+        )?;
+        progress.finish_and_clear();
+        Ok(serde_json::to_value(result)?)
+    };
+    match args.target {
+        Target::Pose => Ok(serde_json::json!({
+            "rotation": train(Target::Rotation, args.out.clone())?,
+            "translation": train(Target::Translation, args.out.join(TRANSLATION_DIR))?,
+        })),
+        target => train(target, args.out.clone()),
+    }
 }

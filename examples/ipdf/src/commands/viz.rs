@@ -71,7 +71,7 @@ pub fn run(args: &VizArgs) -> Result<serde_json::Value> {
         match (&args.rgb, &args.mask, args.scene, args.image) {
             (Some(rgb), Some(mask), _, _) => {
                 let crop = crop_files(rgb, mask, size)?;
-                distribution_figure(&model, &crop, &[], args.level, &title)?
+                distribution_figure(&model, &crop.pixels, &[], args.level, &title)?
             }
             (_, _, Some(scene_id), Some(im_id)) => {
                 let dataset = info.dataset(args.dataset.as_deref())?;
@@ -106,7 +106,7 @@ pub fn run(args: &VizArgs) -> Result<serde_json::Value> {
                     &scene.visible_mask_path(im_id, args.instance),
                     size,
                 )?;
-                distribution_figure(&model, &crop, &truth, args.level, &title)?
+                distribution_figure(&model, &crop.pixels, &truth, args.level, &title)?
             }
             _ => bail!("--checkpoint needs --rgb and --mask, or --scene and --image"),
         }

@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
 use crate::PipelineError;
+use crate::training::Target;
 
 /// A size of run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -45,10 +46,12 @@ impl Preset {
                 input_size: 48,
                 head: vec![64, 64],
                 epochs: 32,
+                translation_epochs: 16,
                 steps_per_epoch: 50,
                 batch_size: 16,
                 learning_rate: 4e-3,
                 query_level: 1,
+                translation_queries: 1_024,
                 eval_level: 5,
                 occlusion: vec![false],
                 backbones: vec![],
@@ -63,10 +66,12 @@ impl Preset {
                 input_size: 224,
                 head: vec![256, 256, 256, 256],
                 epochs: 50,
+                translation_epochs: 50,
                 steps_per_epoch: 200,
                 batch_size: 64,
                 learning_rate: 1e-4,
                 query_level: 2,
+                translation_queries: 4_096,
                 eval_level: 5,
                 occlusion: vec![false, true],
                 backbones: vec![EncoderKind::Resnet18Stage3, EncoderKind::ConvnextTiny],
@@ -98,8 +103,10 @@ pub struct Plan {
     /// Widths of the head's layers (written comma-separated, as `--head` takes them).
     #[serde(with = "comma_separated")]
     pub head: Vec<i64>,
-    /// Epochs.
+    /// Epochs of the rotation models.
     pub epochs: u64,
+    /// Epochs of the translation models.
+    pub translation_epochs: u64,
     /// Steps per epoch.
     pub steps_per_epoch: u64,
     /// Images per step.
@@ -108,6 +115,9 @@ pub struct Plan {
     pub learning_rate: f64,
     /// Grid level of the training queries.
     pub query_level: u8,
+    /// Translations queried per image and step by the translation models (one beside each
+    /// Single / Analytical / Pseudo rotation model, in its `translation/` folder).
+    pub translation_queries: usize,
     /// Grid level of the scores.
     pub eval_level: u8,
     /// Occlusion settings of the Single / Analytical / Pseudo models.
@@ -143,9 +153,17 @@ mod comma_separated {
 }
 
 impl Plan {
-    /// Steps each model trains for.
-    pub fn total_steps(&self) -> u64 {
-        self.epochs * self.steps_per_epoch
+    /// Epochs the models of `target` train for.
+    pub fn epochs_of(&self, target: Target) -> u64 {
+        match target {
+            Target::Translation => self.translation_epochs,
+            _ => self.epochs,
+        }
+    }
+
+    /// Steps each model of `target` trains for.
+    pub fn total_steps(&self, target: Target) -> u64 {
+        self.epochs_of(target) * self.steps_per_epoch
     }
 
     /// The settings that decide the run's outputs, as recorded.
@@ -175,13 +193,14 @@ pub struct PipelineConfig {
 pub const CONFIG_FILE: &str = "pipeline_config.json";
 
 /// The keys of [`PipelineConfig`] set by command-line flags, and the flags.
-const FLAGS: [(&str, &str); 7] = [
+const FLAGS: [(&str, &str); 8] = [
     ("preset", "--preset"),
     ("seed", "--seed"),
     ("frames_per_object", "--frames"),
     ("val_frames_per_object", "--val-frames"),
     ("texture_frames_per_object", "--texture-frames"),
     ("epochs", "--epochs"),
+    ("translation_epochs", "--translation-epochs"),
     ("steps_per_epoch", "--steps-per-epoch"),
 ];
 

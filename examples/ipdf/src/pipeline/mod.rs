@@ -1,6 +1,7 @@
 //! `ipdf pipeline`: the whole method on synthetic data, as one resumable run: synthesise the
 //! uniform and textured datasets → pseudo-label them → train Single, Analytical and Pseudo
-//! models per object on the uniform one → evaluate on its validation split → `report.md` /
+//! models per object on the uniform one (Analytical and Pseudo with a translation model too:
+//! a 6D pose) → evaluate on its validation split → `report.md` /
 //! `report.json` with the paper's tables filled by measured numbers, and figures. Each stage
 //! calls the libraries with typed options, and is skipped when its outputs exist. The run's
 //! settings are recorded in `pipeline_config.json` when it starts, and a rerun into the same
@@ -17,7 +18,7 @@ use std::time::Instant;
 use bop_dataset::{
     BopDataset, read_json_as, read_models_info, read_scene_gt, write_atomically, write_json,
 };
-use ipdf_model::{ImplicitPdf, ModelConfig, TRAIN_LOG, default_device};
+use ipdf_model::{ImplicitPdf, ModelConfig, TRAIN_LOG, TranslationPdf, default_device};
 use pseudo_label::{DatasetOptions, LabelOptions, LabelReport, Shard, label_dataset};
 use serde::{Deserialize, Serialize};
 use synth_data::{ObjectKind, SynthObject, SynthOptions, Variant, synthesize};
@@ -28,11 +29,14 @@ pub use workers::on_threads;
 
 use crate::PipelineError;
 use crate::evaluation::{EvalRequest, EvalResult, distribution_figure, eval_file, evaluate_run};
-use crate::plots::{plot_label_errors, plot_training_curves, write_png};
+use crate::plots::{plot_label_errors, plot_training_curves, plot_translation, write_png};
 use crate::progress::bar;
 use crate::run_info::RunInfo;
-use crate::training::{TrainRequest, is_trained, train_model};
-use crate::training_data::{LabelSource, crop_files};
+use crate::training::{TRANSLATION_DIR, Target, TrainRequest, is_trained, train_model};
+use crate::training_data::{
+    ExampleOptions, LabelSource, crop_files, load_examples, to_unit_floats,
+};
+use crate::translation_eval::predict_translation;
 
 /// The objects of the run.
 const OBJECTS: [ObjectKind; 3] = [ObjectKind::Can, ObjectKind::Box, ObjectKind::Bowl];
@@ -50,14 +54,41 @@ pub struct PipelineSummary {
     pub timing_s: BTreeMap<String, f64>,
 }
 
-/// One trained model of the run.
+/// Validation crops per epoch of the pipeline's translation models.
+const TRANSLATION_VALIDATION: usize = 16;
+
+/// One trained model of the run: a rotation model in `dir`, with a translation model in
+/// `dir/translation` where `pose`: the Analytical and Pseudo runs of the main encoder. Single
+/// label sets hold the same translations as Analytical ones (the objects' symmetries keep
+/// their origin in place), so their translation model would be the Analytical one: measured,
+/// the two were bit-identical.
 #[derive(Debug, Clone, PartialEq)]
 struct ModelRun {
     object: ObjectKind,
     labels: LabelSource,
     occlusion: bool,
     encoder: ipdf_model::EncoderKind,
+    pose: bool,
     dir: PathBuf,
+}
+
+impl ModelRun {
+    /// The folder of its model of `target` (rotation or translation).
+    fn dir_of(&self, target: Target) -> PathBuf {
+        match target {
+            Target::Translation => self.dir.join(TRANSLATION_DIR),
+            _ => self.dir.clone(),
+        }
+    }
+
+    /// The models it trains.
+    fn targets(&self) -> &'static [Target] {
+        if self.pose {
+            &[Target::Rotation, Target::Translation]
+        } else {
+            &[Target::Rotation]
+        }
+    }
 }
 
 /// Runs (or resumes) the pipeline of `plan` into `out`.
@@ -194,7 +225,8 @@ fn score_labels(out: &Path, variant: Variant) -> Result<LabelReport, PipelineErr
 }
 
 /// Stage 3, the models: per object, Single, Analytical and Pseudo labels (with and without
-/// occlusion in the paper preset), and the pseudo-label models of other backbones.
+/// occlusion in the paper preset), the Analytical and Pseudo ones with a translation model
+/// too, and the pseudo-label rotation models of other backbones.
 fn model_runs(out: &Path, plan: &Plan) -> Vec<ModelRun> {
     let mut runs = Vec::new();
     for object in OBJECTS {
@@ -221,6 +253,7 @@ fn model_runs(out: &Path, plan: &Plan) -> Vec<ModelRun> {
                 labels,
                 occlusion,
                 encoder,
+                pose: encoder == plan.encoder && labels != LabelSource::Single,
                 dir: out.join("models").join(object.name()).join(name),
             }
         })
@@ -236,15 +269,18 @@ fn train_models(
 ) -> Result<(), PipelineError> {
     let mut pending = Vec::new();
     for run in runs {
-        if !is_trained(&run.dir, plan.total_steps())? {
-            pending.push(run);
+        for &target in run.targets() {
+            if !is_trained(&run.dir_of(target), plan.total_steps(target))? {
+                pending.push((run, target));
+            }
         }
     }
     let data = data_dir(out, Variant::Uniform);
-    on_threads(&pending, plan.concurrent_models, |run| {
+    on_threads(&pending, plan.concurrent_models, |&(run, target)| {
         eprintln!(
-            "pipeline: training {} on {} labels{}",
+            "pipeline: training {}'s {} on {} labels{}",
             run.object.name(),
+            target.name(),
             run.labels.name(),
             if run.occlusion { " with occlusion" } else { "" }
         );
@@ -256,6 +292,7 @@ fn train_models(
             obj_id: None,
             object_name: Some(run.object.name().into()),
             labels: run.labels,
+            target,
             model: ModelConfig {
                 encoder: run.encoder,
                 input_size: plan.input_size as i64,
@@ -263,18 +300,22 @@ fn train_models(
                 seed,
                 ..ModelConfig::default()
             },
-            epochs: plan.epochs,
+            epochs: plan.epochs_of(target),
             steps_per_epoch: plan.steps_per_epoch,
             batch_size: plan.batch_size,
             learning_rate: plan.learning_rate,
             occlusion: run.occlusion,
             query_level: plan.query_level,
+            translation_queries: plan.translation_queries,
             continuous_steps: 36,
             pretrained: None,
-            out: run.dir.clone(),
+            // A translation model's validation refines an octree per crop (about 0.6 s per
+            // epoch for 50 crops of the quick preset): 16 crops give the curve.
+            validation_images: (target == Target::Translation).then_some(TRANSLATION_VALIDATION),
+            out: run.dir_of(target),
             seed,
         };
-        let progress = bar(plan.total_steps(), "steps");
+        let progress = bar(plan.total_steps(target), "steps");
         train_model(&request, &progress)?;
         progress.finish_and_clear();
         Ok(())
@@ -333,10 +374,15 @@ fn draw_figures(
                 .map_err(|e| bop_dataset::FileError::new(&log, "file", e.to_string()))?;
             write_png(&curves, &plot_training_curves(&text, &log)?)?;
         }
+        let translation = figures.join(format!("{stem}_translation.png"));
+        if run.pose && !translation.exists() {
+            write_png(&translation, &first_translation_figure(run, &data)?)?;
+        }
         entries.push(FigureEntry {
             object: run.object.name().into(),
             labels: run.labels.name().into(),
             stem,
+            translation: run.pose,
         });
     }
     draw_label_errors(out, &figures.join(LABEL_ERRORS_FIGURE))?;
@@ -401,7 +447,7 @@ fn first_validation_figure(
             );
             return distribution_figure(
                 &model,
-                &crop,
+                &crop.pixels,
                 &group.expand(&truth.pose.rotation),
                 level,
                 &title,
@@ -412,6 +458,42 @@ fn first_validation_figure(
         "dataset",
         format!("no validation image of {}", run.object.name()),
     ))
+}
+
+/// The translation distribution of `run`'s translation model for the first validation image of
+/// its object, against the ground truth.
+fn first_translation_figure(run: &ModelRun, data: &Path) -> Result<image::RgbImage, PipelineError> {
+    let dir = run.dir_of(Target::Translation);
+    let info = RunInfo::read(&dir)?;
+    let model = TranslationPdf::load(&dir, default_device())?;
+    let size = model.config().network.input_size as usize;
+    let examples = load_examples(
+        &BopDataset::new(data),
+        &ExampleOptions::evaluation("val", info.obj_id, size),
+    )?;
+    let (Some(geometry), Some(truth)) = (
+        examples.geometry.first(),
+        examples.truth_poses.as_ref().and_then(|t| t.first()),
+    ) else {
+        return Err(PipelineError::option(
+            "dataset",
+            format!("no validation image of {}", run.object.name()),
+        ));
+    };
+    let crop = to_unit_floats(&examples.crops.get(0));
+    let prediction = predict_translation(&model, &crop, geometry)?;
+    let title = format!(
+        "{}, translation trained on {} labels: offset from the ground truth",
+        run.object.name(),
+        run.labels.name()
+    );
+    plot_translation(
+        &prediction.centres,
+        &prediction.distribution.masses,
+        &truth.translation.vector,
+        &prediction.argmax.translation,
+        &title,
+    )
 }
 
 /// `report.json` of the run.
@@ -449,6 +531,8 @@ fn report_of(
             recall_maad_deg: result.recall_maad_deg,
             images: result.images,
             under_resolution: result.under_resolution,
+            translation: result.translation,
+            pose: result.pose,
         };
         table
             .entry(row.to_string())

@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 
 use super::config::PipelineConfig;
 use crate::training_data::LabelSource;
+use crate::translation_eval::{ADD_S_AUC_FRACTION, PoseEval, TranslationEval};
 use ipdf_model::UNDER_RESOLUTION_LIMIT;
 
 /// The scores of one model.
@@ -23,6 +24,12 @@ pub struct ModelScores {
     /// ([`ipdf_model::Predictor::under_resolution`]).
     #[serde(default)]
     pub under_resolution: f64,
+    /// The scores of its translation model, when it has one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub translation: Option<TranslationEval>,
+    /// The two models' scores as a 6D pose, when it has a translation model.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pose: Option<PoseEval>,
 }
 
 /// Models by row (label type or encoder), then by object.
@@ -58,7 +65,8 @@ pub struct Report {
     pub cpu_kernels: BTreeMap<String, String>,
 }
 
-/// One model's figures: `figures/{stem}.png` and `figures/{stem}_curves.png`.
+/// One model's figures: `figures/{stem}.png` and `figures/{stem}_curves.png`, and
+/// `figures/{stem}_translation.png` for a pose.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FigureEntry {
     /// The object.
@@ -67,6 +75,8 @@ pub struct FigureEntry {
     pub labels: String,
     /// The figures' file stem.
     pub stem: String,
+    /// Whether it has a translation model's figure.
+    pub translation: bool,
 }
 
 /// The rows of the Single / Analytical / Pseudo tables.
@@ -107,6 +117,53 @@ fn model_table(text: &mut String, table: &ScoreTable, rows: &[&str]) {
     }
 }
 
+/// The translation and 6D-pose table of the models that have a translation model, each row
+/// with its average.
+fn pose_table(text: &mut String, table: &ScoreTable, rows: &[&str]) {
+    text.push_str(&format!(
+        "| labels | object | translation LLH ↑ | median error (mm) ↓ | mean error (mm) ↓ | median depth / lateral error (mm) | joint LLH ↑ | ADD-S AUC (to {:.0}% of the diameter) ↑ |\n|---|---|---|---|---|---|---|---|\n",
+        100.0 * ADD_S_AUC_FRACTION
+    ));
+    for &row in rows {
+        let Some(objects) = table.get(row) else {
+            continue;
+        };
+        let poses: Vec<(&String, TranslationEval, PoseEval)> = objects
+            .iter()
+            .filter_map(|(object, s)| Some((object, s.translation?, s.pose?)))
+            .collect();
+        for (object, t, p) in &poses {
+            text.push_str(&format!(
+                "| {row} | {object} | {:.2} | {:.1} | {:.1} | {:.1} / {:.1} | {:.2} | {:.3} |\n",
+                t.llh,
+                t.median_error_mm,
+                t.mean_error_mm,
+                t.median_depth_error_mm,
+                t.median_lateral_error_mm,
+                p.joint_llh,
+                p.add_s_auc
+            ));
+        }
+        if poses.is_empty() {
+            continue;
+        }
+        let n = poses.len() as f64;
+        let mean = |score: &dyn Fn(&TranslationEval, &PoseEval) -> f64| {
+            poses.iter().map(|(_, t, p)| score(t, p)).sum::<f64>() / n
+        };
+        text.push_str(&format!(
+            "| {row} | **average** | {:.2} | {:.1} | {:.1} | {:.1} / {:.1} | {:.2} | {:.3} |\n",
+            mean(&|t, _| t.llh),
+            mean(&|t, _| t.median_error_mm),
+            mean(&|t, _| t.mean_error_mm),
+            mean(&|t, _| t.median_depth_error_mm),
+            mean(&|t, _| t.median_lateral_error_mm),
+            mean(&|_, p| p.joint_llh),
+            mean(&|_, p| p.add_s_auc)
+        ));
+    }
+}
+
 impl Report {
     /// `report.md`: the same numbers as tables for people, and the figures.
     pub fn to_markdown(&self, figures: &[FigureEntry]) -> String {
@@ -140,6 +197,7 @@ impl Report {
             (recall_min_log_density(RECALL_THRESHOLD) + std::f64::consts::PI.powi(2).ln()).exp()
         ));
         self.resolution_note(&mut text);
+        self.pose_section(&mut text);
         if !self.models_occlusion.is_empty() {
             text.push_str("\n## With occlusion augmentation\n\n");
             model_table(&mut text, &self.models_occlusion, &LABELS);
@@ -154,8 +212,13 @@ impl Report {
                        position: direction of the object's x-axis; colour: rotation about it; black: the ground-truth set), and its training curves.\n\n");
         for figure in figures {
             let stem = &figure.stem;
+            let translation = if figure.translation {
+                format!(" ![translation](figures/{stem}_translation.png)")
+            } else {
+                String::new()
+            };
             text.push_str(&format!(
-                "- {} / {}: ![distribution](figures/{stem}.png) ![curves](figures/{stem}_curves.png)\n",
+                "- {} / {}: ![distribution](figures/{stem}.png) ![curves](figures/{stem}_curves.png){translation}\n",
                 figure.object, figure.labels
             ));
         }
@@ -176,6 +239,33 @@ impl Report {
             kernels.join(", ")
         ));
         text
+    }
+
+    /// The translation models' table, with and without occlusion, when there are any.
+    fn pose_section(&self, text: &mut String) {
+        let has_pose = |table: &ScoreTable| {
+            table
+                .values()
+                .any(|objects| objects.values().any(|s| s.translation.is_some()))
+        };
+        if !has_pose(&self.models) {
+            return;
+        }
+        let cell = self
+            .models
+            .values()
+            .flat_map(|objects| objects.values())
+            .find_map(|s| s.translation)
+            .map_or(0.0, |t| t.cell_mm);
+        text.push_str(&format!(
+            "\n## Translation and 6D pose\n\nEach model above has a translation model trained on the same label sets              (the translations of the labels). Translation LLH: mean ln p(t | I) at the ground-truth translation,              density per mm³, from a hierarchical distribution down to {cell:.0} mm cells; errors of the most likely              translation (gradient ascent from the best cells), split along and across the line of sight; joint LLH:              rotation LLH + translation LLH; ADD-S AUC: the 6D pose of the two most likely values, thresholds              up to {:.0}% of the object's diameter (BOP).\n\n",
+            100.0 * ADD_S_AUC_FRACTION
+        ));
+        pose_table(text, &self.models, &LABELS);
+        if has_pose(&self.models_occlusion) {
+            text.push_str("\nWith occlusion augmentation:\n\n");
+            pose_table(text, &self.models_occlusion, &LABELS);
+        }
     }
 
     /// Whether the evaluation grid resolved every model's peaks, naming the models it did not.

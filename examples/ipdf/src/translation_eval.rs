@@ -1,0 +1,212 @@
+//! Scores of translation models, and of a rotation model with a translation model as a 6D pose,
+//! on examples with ground truth: the translation LLH (`ln p(t | I)` at the ground-truth
+//! translation, density per mm³), the error of the most likely translation (mm), and, for
+//! poses, the joint LLH and the ADD-S AUC (thresholds up to 10% of the object's diameter).
+use std::path::Path;
+
+use indicatif::ProgressBar;
+use ipdf_model::{
+    ArgmaxOptions, CellMasses, CropGeometry, ImplicitPdf, Predictor, RefineOptions,
+    TranslationArgmax, TranslationArgmaxOptions, TranslationPdf, TranslationPredictor,
+};
+use metrics::{ModelPoints, add_s, auc, translation_error};
+use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
+use serde::{Deserialize, Serialize};
+use tch::Tensor;
+
+use bop_dataset::BopDataset;
+
+use crate::PipelineError;
+use crate::training_data::{Examples, to_unit_floats};
+
+/// The finest cells (mm) of the translation distributions scored.
+pub const TRANSLATION_CELL_MM: f64 = 2.0;
+/// Surface points of the object's mesh that ADD-S averages over.
+const ADD_S_POINTS: usize = 2_000;
+/// ADD-S AUC integrates thresholds from 0 to this fraction of the diameter (BOP, YCB-Video).
+pub const ADD_S_AUC_FRACTION: f64 = 0.1;
+
+/// A translation model's scores: the `"translation"` of `ipdf eval`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TranslationEval {
+    /// Crops scored.
+    pub images: usize,
+    /// Mean `ln p(t | I)` at the ground-truth translation (nats, density per mm³; a uniform
+    /// density over the working volume scores `−ln |V|`).
+    pub llh: f64,
+    /// Median distance of the most likely translation from the ground truth, mm.
+    pub median_error_mm: f64,
+    /// Mean distance, mm.
+    pub mean_error_mm: f64,
+    /// Median error along the ground truth's line of sight (depth), mm.
+    pub median_depth_error_mm: f64,
+    /// Median error across the line of sight, mm.
+    pub median_lateral_error_mm: f64,
+    /// Side of the finest octree cells, at most this (mm).
+    pub cell_mm: f64,
+    /// The most network queries one crop took.
+    pub queries_per_image: usize,
+}
+
+/// A rotation and a translation model scored together: the `"pose"` of `ipdf eval`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PoseEval {
+    /// Mean of the rotation LLH plus the translation LLH over crops (the two models are
+    /// independent given the image).
+    pub joint_llh: f64,
+    /// Area under the ADD-S accuracy curve for thresholds up to 10% of the diameter, in [0, 1].
+    pub add_s_auc: f64,
+    /// Median ADD-S of the most likely pose, mm.
+    pub median_add_s_mm: f64,
+    /// The object's diameter (mm, `models_info.json`).
+    pub diameter_mm: f64,
+}
+
+/// One crop's translation distribution as scored (cells down to [`TRANSLATION_CELL_MM`]) and
+/// its most likely translation.
+pub struct TranslationPrediction {
+    /// The hierarchical distribution.
+    pub distribution: CellMasses,
+    /// Its cells' centres (mm).
+    pub centres: Vec<Vector3<f64>>,
+    /// The most likely translation (gradient ascent from the densest cells).
+    pub argmax: TranslationArgmax,
+}
+
+/// The distribution and most likely translation of `model` for one crop (`[3, S, S]` in
+/// `[0, 1]`) cut out with `geometry`.
+pub fn predict_translation(
+    model: &TranslationPdf,
+    crop: &Tensor,
+    geometry: &CropGeometry,
+) -> Result<TranslationPrediction, PipelineError> {
+    let predictor = TranslationPredictor::new(model);
+    let options = TranslationArgmaxOptions {
+        refine: RefineOptions::translation(&model.space().volume, TRANSLATION_CELL_MM),
+        ..TranslationArgmaxOptions::for_model(model)
+    };
+    let distribution = predictor.hierarchical(crop, geometry, &options.refine)?;
+    let argmax = predictor.argmax_from(crop, geometry, &distribution, &options)?;
+    Ok(TranslationPrediction {
+        centres: predictor.cell_centres(&distribution)?,
+        distribution,
+        argmax,
+    })
+}
+
+/// The translation scores of `model` on `examples`, and the most likely translation of each
+/// crop (mm); `progress` advances by one per crop. Fails when the examples have no ground truth.
+pub fn evaluate_translation(
+    model: &TranslationPdf,
+    examples: &Examples,
+    progress: &ProgressBar,
+) -> Result<(TranslationEval, Vec<Vector3<f64>>), PipelineError> {
+    let truths = truth_poses(examples)?;
+    let predictor = TranslationPredictor::new(model);
+    let (mut llh, mut errors, mut argmax, mut queries) = (0.0, Vec::new(), Vec::new(), 0);
+    let (mut depth_errors, mut lateral_errors) = (Vec::new(), Vec::new());
+    for (i, truth) in truths.iter().enumerate() {
+        let crop = to_unit_floats(&examples.crops.get(i as i64));
+        let geometry = &examples.geometry[i];
+        let truth = truth.translation.vector;
+        let prediction = predict_translation(model, &crop, geometry)?;
+        let distribution = &prediction.distribution;
+        llh += predictor.log_densities(&crop, geometry, &[truth], distribution)?[0];
+        queries = queries.max(distribution.queries);
+        let best = prediction.argmax;
+        errors.push(translation_error(&best.translation, &truth));
+        let offset = best.translation - truth;
+        let along = offset.dot(&truth.normalize());
+        depth_errors.push(along.abs());
+        lateral_errors.push((offset.norm_squared() - along * along).max(0.0).sqrt());
+        argmax.push(best.translation);
+        progress.inc(1);
+    }
+    let n = truths.len().max(1) as f64;
+    let scores = TranslationEval {
+        images: truths.len(),
+        llh: llh / n,
+        median_error_mm: median(&mut errors),
+        mean_error_mm: errors.iter().sum::<f64>() / n,
+        median_depth_error_mm: median(&mut depth_errors),
+        median_lateral_error_mm: median(&mut lateral_errors),
+        cell_mm: TRANSLATION_CELL_MM,
+        queries_per_image: queries,
+    };
+    Ok((scores, argmax))
+}
+
+/// ADD-S of the poses made of `model`'s most likely rotation and the given translations (mm)
+/// against the ground truth, on points sampled from `obj_id`'s mesh; with the joint LLH from the
+/// two models' mean LLHs.
+pub fn evaluate_pose(
+    model: &ImplicitPdf,
+    examples: &Examples,
+    translations: &[Vector3<f64>],
+    dataset: &BopDataset,
+    obj_id: u32,
+    llh: (f64, f64),
+    refine: &RefineOptions,
+) -> Result<PoseEval, PipelineError> {
+    let truths = truth_poses(examples)?;
+    let (points, diameter_mm) = model_points(dataset, obj_id)?;
+    let mut predictor = Predictor::new(model);
+    let options = ArgmaxOptions {
+        refine: *refine,
+        ..ArgmaxOptions::default()
+    };
+    let mut errors = Vec::with_capacity(truths.len());
+    for (i, (truth, translation)) in truths.iter().zip(translations).enumerate() {
+        let crop = to_unit_floats(&examples.crops.get(i as i64));
+        let rotation: UnitQuaternion<f64> = predictor.argmax(&crop, &options)?.rotation;
+        let estimate = Isometry3::from_parts((*translation).into(), rotation);
+        errors.push(add_s(&points, &estimate, truth));
+    }
+    Ok(PoseEval {
+        joint_llh: llh.0 + llh.1,
+        add_s_auc: auc(&errors, ADD_S_AUC_FRACTION * diameter_mm)?,
+        median_add_s_mm: median(&mut errors),
+        diameter_mm,
+    })
+}
+
+/// The median (upper middle) of `values`, sorting them; NaN for none.
+fn median(values: &mut [f64]) -> f64 {
+    values.sort_by(f64::total_cmp);
+    values.get(values.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+fn truth_poses(examples: &Examples) -> Result<&[Isometry3<f64>], PipelineError> {
+    examples.truth_poses.as_deref().ok_or_else(|| {
+        PipelineError::option("dataset", "evaluation needs the split's scene_gt.json")
+    })
+}
+
+/// [`ADD_S_POINTS`] points on the surface of `obj_id`'s mesh (mm, as BOP meshes are) and its
+/// diameter from `models_info.json`.
+fn model_points(dataset: &BopDataset, obj_id: u32) -> Result<(ModelPoints, f64), PipelineError> {
+    let path = dataset.model_path(obj_id);
+    let mesh = depth_render::load_mesh(&path, 1.0)
+        .map_err(|e| bop_dataset::FileError::new(&path, "mesh", e.to_string()))?
+        .mesh;
+    let (points, _) = depth_render::sample_surface(&mesh, ADD_S_POINTS, u64::from(obj_id));
+    let points: Vec<Point3<f64>> = points.iter().map(|p| p.cast()).collect();
+    let models = bop_dataset::read_models_info(&dataset.models_info_path())?;
+    let diameter = models.get(&obj_id).map(|m| m.diameter).ok_or_else(|| {
+        bop_dataset::FileError::new(
+            &dataset.models_info_path(),
+            obj_id.to_string(),
+            "no such object",
+        )
+    })?;
+    Ok((ModelPoints::new(&points)?, diameter))
+}
+
+/// Whether the run folder `dir` holds a translation model's checkpoint (a folder without a
+/// checkpoint is left to the rotation model's loader, whose error names what is missing).
+pub fn is_translation_run(dir: &Path) -> Result<bool, PipelineError> {
+    if !dir.join(ipdf_model::CHECKPOINT_FILE).exists() {
+        return Ok(false);
+    }
+    Ok(ipdf_model::CheckpointInfo::read(dir)?.translation.is_some())
+}

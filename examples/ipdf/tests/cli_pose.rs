@@ -1,0 +1,251 @@
+//! 6D poses through the real binary: `train --target translation|pose`, `eval` and `predict`
+//! of translation models and pose runs on a few synthetic frames (barely trained: the files,
+//! their shapes and the figures' ranges are checked, not accuracy), and bad inputs.
+mod common;
+
+use std::path::Path;
+
+use common::{assert_fails, ipdf_json, s};
+use serde_json::Value;
+
+fn read(path: &Path) -> Value {
+    serde_json::from_slice(
+        &std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())),
+    )
+    .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// The float32 rows of a 2-D `.npy` file and its shape.
+fn read_npy(path: &Path) -> (Vec<u64>, Vec<f32>) {
+    let bytes = std::fs::read(path).unwrap();
+    let npy = npyz::NpyFile::new(&bytes[..]).unwrap();
+    let shape = npy.shape().to_vec();
+    (shape, npy.into_vec::<f32>().unwrap())
+}
+
+fn finite(value: &Value) -> f64 {
+    let v = value.as_f64().unwrap_or(f64::NAN);
+    assert!(v.is_finite(), "{value}");
+    v
+}
+
+#[test]
+fn pose_runs_train_score_and_predict_translations() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    for (split, frames, seed) in [("train", "12", "0"), ("val", "3", "1")] {
+        ipdf_json(&[
+            "synth",
+            "--out",
+            s(&data),
+            "--objects",
+            "box",
+            "--frames",
+            frames,
+            "--split",
+            split,
+            "--seed",
+            seed,
+        ]);
+    }
+    let run = dir.path().join("run");
+    let train = |target: &str, out: &Path| {
+        let words = [
+            "train",
+            "--dataset",
+            s(&data),
+            "--labels",
+            "single",
+            "--target",
+            target,
+            "--out",
+            s(out),
+            "--encoder",
+            "small-cnn",
+            "--input-size",
+            "32",
+            "--head",
+            "16,16",
+            "--epochs",
+            "2",
+            "--steps-per-epoch",
+            "3",
+            "--batch-size",
+            "4",
+            "--translation-queries",
+            "64",
+        ];
+        ipdf_json(&words)
+    };
+    let trained = train("pose", &run);
+    assert_eq!(trained["rotation"]["target"], "rotation");
+    assert_eq!(trained["translation"]["target"], "translation");
+    assert!(finite(&trained["translation"]["validation_llh"]) < 0.0);
+    // Rotation runs keep their run.json as before; the translation model has its own folder,
+    // whose checkpoint records the working volume.
+    assert!(read(&run.join("run.json")).get("target").is_none());
+    let translation_run = run.join("translation");
+    assert_eq!(
+        read(&translation_run.join("run.json"))["target"],
+        "translation"
+    );
+    let volume = &read(&translation_run.join("checkpoint.json"))["translation"]["volume"];
+    for axis in 0..3 {
+        assert!(
+            finite(&volume["min"][axis]) < finite(&volume["max"][axis]),
+            "{volume}"
+        );
+    }
+
+    let scores = ipdf_json(&["eval", "--checkpoint", s(&run), "--level", "2"]);
+    let translation = &scores["translation"];
+    assert_eq!(translation["images"], 3);
+    assert!(finite(&translation["median_error_mm"]) >= 0.0);
+    assert!(
+        finite(&translation["median_depth_error_mm"])
+            <= finite(&translation["median_error_mm"]) + 1e-9
+    );
+    let pose = &scores["pose"];
+    let joint = finite(&pose["joint_llh"]);
+    assert!((joint - finite(&scores["llh"]) - finite(&translation["llh"])).abs() < 1e-9);
+    assert!((0.0..=1.0).contains(&finite(&pose["add_s_auc"])), "{pose}");
+    assert!((finite(&pose["diameter_mm"]) - 271.5).abs() < 2.0, "{pose}");
+    // The translation model alone scores the same.
+    let alone = ipdf_json(&["eval", "--checkpoint", s(&translation_run)]);
+    assert_eq!(alone["translation"], *translation);
+    assert!(alone.get("llh").is_none());
+
+    let scene = data.join("val/000000");
+    let (rgb, mask) = (
+        scene.join("rgb/000000.png"),
+        scene.join("mask_visib/000000_000000.png"),
+    );
+    let k = &read(&scene.join("scene_camera.json"))["0"]["cam_K"];
+    let intrinsics = format!("{},{},{},{}", k[0], k[4], k[2], k[5]);
+    let out = dir.path().join("pose.npy");
+    let predict = |run: &Path, intrinsics: &str| {
+        ipdf_json(&[
+            "predict",
+            "--checkpoint",
+            s(run),
+            "--rgb",
+            s(&rgb),
+            "--mask",
+            s(&mask),
+            "--level",
+            "1",
+            "--intrinsics",
+            intrinsics,
+            "--out",
+            s(&out),
+        ])
+    };
+    let predicted = predict(&run, &intrinsics);
+    assert_eq!(predicted["cells"], 576);
+    let t = &predicted["argmax"]["cam_t_m2c"];
+    assert!(finite(&t[2]) > 0.0, "{predicted}");
+    assert_eq!(
+        predicted["argmax"]["cam_R_m2c"].as_array().unwrap().len(),
+        9
+    );
+    let (shape, rows) = read_npy(&dir.path().join("pose_translation.npy"));
+    assert_eq!(shape[1], 5);
+    assert_eq!(
+        shape[0],
+        predicted["translation"]["cells"].as_u64().unwrap()
+    );
+    let total: f64 = rows.chunks(5).map(|row| f64::from(row[4])).sum();
+    assert!((total - 1.0).abs() < 1e-3, "masses sum to {total}");
+    assert_eq!(read(&out.with_extension("json")), predicted);
+    let only = predict(&translation_run, &intrinsics);
+    assert_eq!(only["argmax"]["cam_t_m2c"], *t);
+    assert!(only.get("level").is_none());
+
+    // Bad inputs: one line each, nothing half-written.
+    let words = |extra: &[&str]| {
+        let mut w = vec![
+            "predict",
+            "--checkpoint",
+            s(&run),
+            "--rgb",
+            s(&rgb),
+            "--mask",
+            s(&mask),
+        ];
+        w.extend(["--out", s(&out)]);
+        w.extend(extra);
+        w.iter().map(|a| a.to_string()).collect::<Vec<_>>()
+    };
+    // A pose run without intrinsics predicts the orientation only; a translation run needs
+    // them.
+    let orientation = ipdf_json(&[
+        "predict",
+        "--checkpoint",
+        s(&run),
+        "--rgb",
+        s(&rgb),
+        "--mask",
+        s(&mask),
+        "--level",
+        "1",
+        "--out",
+        s(&out),
+    ]);
+    assert!(orientation.get("translation").is_none(), "{orientation}");
+    assert!(orientation["argmax"].get("cam_t_m2c").is_none());
+    assert_fails(
+        &[
+            "predict",
+            "--checkpoint",
+            s(&translation_run),
+            "--rgb",
+            s(&rgb),
+            "--mask",
+            s(&mask),
+            "--out",
+            s(&out),
+        ],
+        "--intrinsics",
+    );
+    for (extra, expected) in [
+        (vec!["--intrinsics", "600,600,320"], "intrinsics"),
+        (vec!["--intrinsics", "600,600,5000,240"], "outside"),
+    ] {
+        let args = words(&extra);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        assert_fails(&args, expected);
+    }
+    let fail_train = |extra: &[&str], expected: &str| {
+        let mut w = vec!["train", "--dataset", s(&data), "--labels", "single"];
+        w.extend(extra);
+        assert_fails(&w, expected);
+    };
+    fail_train(&["--target", "position", "--out", s(&run)], "position");
+    fail_train(
+        &[
+            "--target",
+            "translation",
+            "--translation-queries",
+            "1",
+            "--out",
+            s(&run),
+        ],
+        "translation-queries",
+    );
+    // A rotation run's folder is not continued as a translation run.
+    fail_train(
+        &[
+            "--target",
+            "translation",
+            "--encoder",
+            "small-cnn",
+            "--input-size",
+            "32",
+            "--head",
+            "16,16",
+            "--out",
+            s(&run),
+        ],
+        "other data",
+    );
+}
