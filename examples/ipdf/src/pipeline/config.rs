@@ -51,7 +51,7 @@ impl Preset {
                 batch_size: 16,
                 learning_rate: 4e-3,
                 query_level: 1,
-                translation_queries: 1_024,
+                translation_queries: 512,
                 eval_level: 5,
                 occlusion: vec![false],
                 backbones: vec![],
