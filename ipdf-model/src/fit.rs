@@ -94,15 +94,8 @@ impl LabelledImages {
         images: Tensor,
         label_sets: Vec<Vec<UnitQuaternion<f64>>>,
     ) -> Result<Self, ModelError> {
-        let size = images.size();
-        if size.len() != 4 || size[1] != 3 || size[2] != size[3] || size[0] == 0 {
-            return Err(ModelError::ImageShape {
-                field: "images",
-                expected: "[N ≥ 1, 3, S, S]".into(),
-                got: format!("{size:?}"),
-            });
-        }
-        check_label_sets(&label_sets, size[0] as usize)?;
+        let count = check_image_stack(&images)?;
+        check_label_sets(&label_sets, count)?;
         Ok(Self { images, label_sets })
     }
 
@@ -123,18 +116,35 @@ impl LabelledImages {
 
     /// The images at `indices` as floats in `[0, 1]`, with their label sets.
     pub fn batch(&self, indices: &[usize]) -> (Tensor, Vec<Vec<UnitQuaternion<f64>>>) {
-        let index = Tensor::from_slice(&indices.iter().map(|&i| i as i64).collect::<Vec<_>>());
-        let images = self.images.index_select(0, &index);
-        let images = if images.kind() == Kind::Uint8 {
-            images.to_kind(Kind::Float) / 255.0
-        } else {
-            images.to_kind(Kind::Float)
-        };
         let sets = indices
             .iter()
             .map(|&i| self.label_sets[i].clone())
             .collect();
-        (images, sets)
+        (select_images(&self.images, indices), sets)
+    }
+}
+
+/// Checks that `images` is a stack `[N ≥ 1, 3, S, S]` of training crops; returns `N`.
+pub(crate) fn check_image_stack(images: &Tensor) -> Result<usize, ModelError> {
+    let size = images.size();
+    if size.len() != 4 || size[1] != 3 || size[2] != size[3] || size[0] == 0 {
+        return Err(ModelError::ImageShape {
+            field: "images",
+            expected: "[N ≥ 1, 3, S, S]".into(),
+            got: format!("{size:?}"),
+        });
+    }
+    Ok(size[0] as usize)
+}
+
+/// The crops of `images` (float in `[0, 1]` or 8-bit) at `indices`, as floats in `[0, 1]`.
+pub(crate) fn select_images(images: &Tensor, indices: &[usize]) -> Tensor {
+    let index = Tensor::from_slice(&indices.iter().map(|&i| i as i64).collect::<Vec<_>>());
+    let images = images.index_select(0, &index);
+    if images.kind() == Kind::Uint8 {
+        images.to_kind(Kind::Float) / 255.0
+    } else {
+        images.to_kind(Kind::Float)
     }
 }
 

@@ -1,7 +1,10 @@
 //! The translation model on renders of a cube at random places in front of the camera: it
 //! learns where the cube is to a few millimetres; its octree distribution sums to 1 and matches
 //! the dense grid; gradient ascent ends near the densest cell; bad input gets typed errors.
-use depth_render::{Instance, Lighting, Material, PinholeCamera, Primitive, Scene, Window};
+mod common;
+
+use common::render_cube;
+use depth_render::{PinholeCamera, Primitive, Scene};
 use ipdf_model::{
     CHECKPOINT_FILE, CameraIntrinsics, CellHierarchy, CheckpointInfo, CropGeometry, CropOptions,
     FitOptions, ImplicitPdf, LabelledTranslations, ModelError, RefineOptions,
@@ -47,25 +50,7 @@ fn renders(count: usize, seed: u64) -> Renders {
         let x = z * rng.random_range(-0.12..0.12);
         let y = z * rng.random_range(-0.12..0.12);
         let pose = Isometry3::from_parts(Translation3::new(x, y, z), rotation);
-        let instances = [Instance::new(0, pose)];
-        let rendering = scene
-            .render(&camera, &instances, Window::full(&camera))
-            .unwrap();
-        let rgb = scene
-            .shade(
-                &camera,
-                &instances,
-                &[Material::Uniform([0.9, 0.6, 0.2])],
-                &Lighting::default(),
-                &rendering,
-            )
-            .unwrap()
-            .concat();
-        let mask: Vec<u8> = rendering
-            .instance
-            .iter()
-            .map(|hit| u8::from(hit.is_some()))
-            .collect();
+        let (rgb, mask) = render_cube(&scene, &camera, pose);
         let options = CropOptions::new(SIZE);
         crops.push(crop_object(&rgb, &mask, IMAGE, IMAGE, &options).unwrap());
         geometry.push(CropGeometry {

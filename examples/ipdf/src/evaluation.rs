@@ -18,9 +18,10 @@ use so3_grid::Grid;
 use crate::PipelineError;
 use crate::plots::plot_distribution;
 use crate::run_info::RunInfo;
-use crate::training::TRANSLATION_DIR;
 use crate::training_data::{ExampleOptions, Examples, crop_tensor, load_examples, to_unit_floats};
-use crate::translation_eval::{PoseEval, TranslationEval, evaluate_pose, evaluate_translation};
+use crate::translation_eval::{
+    PoseEval, TranslationEval, evaluate_pose, evaluate_translation, pose_translation_model,
+};
 
 /// Mean scores over the crops evaluated.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -216,28 +217,12 @@ pub fn evaluate_run(
     let size = model.config().input_size as usize;
     let options = ExampleOptions::evaluation(&request.split, info.obj_id, size);
     let examples = load_examples(&dataset, &options)?;
-    let translation_dir = request.checkpoint.join(TRANSLATION_DIR);
-    let translation_model = translation_dir
-        .join(ipdf_model::CHECKPOINT_FILE)
-        .exists()
-        .then(|| TranslationPdf::load(&translation_dir, default_device()))
-        .transpose()?;
+    let translation_model = pose_translation_model(&request.checkpoint, &model)?;
     let passes = if translation_model.is_some() { 2 } else { 1 };
     progress.set_length(passes * examples.instances.len() as u64);
     let scores = evaluate(&model, &examples, &grid, progress)?;
     let (translation, pose) = match &translation_model {
         Some(translation_model) => {
-            if translation_model.config().network.input_size != model.config().input_size {
-                return Err(PipelineError::option(
-                    "checkpoint",
-                    format!(
-                        "{}: the translation model takes {} px crops, the rotation model {}",
-                        translation_dir.display(),
-                        translation_model.config().network.input_size,
-                        model.config().input_size
-                    ),
-                ));
-            }
             let (translation, argmax) =
                 evaluate_translation(translation_model, &examples, progress)?;
             let pose = evaluate_pose(

@@ -2,12 +2,13 @@
 //! on examples with ground truth: the translation LLH (`ln p(t | I)` at the ground-truth
 //! translation, density per mm³), the error of the most likely translation (mm), and, for
 //! poses, the joint LLH and the ADD-S AUC (thresholds up to 10% of the object's diameter).
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use indicatif::ProgressBar;
 use ipdf_model::{
     ArgmaxOptions, CellMasses, CropGeometry, ImplicitPdf, Predictor, RefineOptions,
     TranslationArgmax, TranslationArgmaxOptions, TranslationPdf, TranslationPredictor,
+    default_device,
 };
 use metrics::{ModelPoints, add_s, auc, translation_error};
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
@@ -17,6 +18,7 @@ use tch::Tensor;
 use bop_dataset::BopDataset;
 
 use crate::PipelineError;
+use crate::training::TRANSLATION_DIR;
 use crate::training_data::{Examples, to_unit_floats};
 
 /// The finest cells (mm) of the translation distributions scored.
@@ -200,6 +202,40 @@ fn model_points(dataset: &BopDataset, obj_id: u32) -> Result<(ModelPoints, f64),
         )
     })?;
     Ok((ModelPoints::new(&points)?, diameter))
+}
+
+/// The `translation/` folder of a pose run, when it holds a checkpoint.
+pub fn pose_translation_dir(run: &Path) -> Option<PathBuf> {
+    let dir = run.join(TRANSLATION_DIR);
+    dir.join(ipdf_model::CHECKPOINT_FILE)
+        .exists()
+        .then_some(dir)
+}
+
+/// The translation model of a pose run whose rotation model is `rotation`, when it has one,
+/// checked to take the same crops.
+pub fn pose_translation_model(
+    run: &Path,
+    rotation: &ImplicitPdf,
+) -> Result<Option<TranslationPdf>, PipelineError> {
+    let Some(dir) = pose_translation_dir(run) else {
+        return Ok(None);
+    };
+    let model = TranslationPdf::load(&dir, default_device())?;
+    let (size, expected) = (
+        model.config().network.input_size,
+        rotation.config().input_size,
+    );
+    if size != expected {
+        return Err(PipelineError::option(
+            "checkpoint",
+            format!(
+                "{}: the translation model takes {size} px crops, the rotation model {expected}",
+                dir.display()
+            ),
+        ));
+    }
+    Ok(Some(model))
 }
 
 /// Whether the run folder `dir` holds a translation model's checkpoint (a folder without a

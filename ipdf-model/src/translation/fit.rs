@@ -3,11 +3,11 @@
 use std::path::Path;
 
 use nalgebra::Vector3;
-use tch::{Kind, Tensor};
+use tch::Tensor;
 
 use super::model::check_translation_sets;
 use super::{CropGeometry, TranslationPdf, TranslationPredictor, TranslationTrainer};
-use crate::fit::{FitOptions, FitTarget};
+use crate::fit::{FitOptions, FitTarget, check_image_stack, select_images};
 use crate::train::StepReport;
 use crate::{ModelError, RefineOptions};
 
@@ -30,18 +30,11 @@ impl LabelledTranslations {
         geometry: Vec<CropGeometry>,
         label_sets: Vec<Vec<Vector3<f64>>>,
     ) -> Result<Self, ModelError> {
-        let size = images.size();
-        if size.len() != 4 || size[1] != 3 || size[2] != size[3] || size[0] == 0 {
-            return Err(ModelError::ImageShape {
-                field: "images",
-                expected: "[N ≥ 1, 3, S, S]".into(),
-                got: format!("{size:?}"),
-            });
-        }
-        if size[0] as usize != label_sets.len() {
+        let count = check_image_stack(&images)?;
+        if count != label_sets.len() {
             return Err(ModelError::LabelSet {
-                image: label_sets.len().min(size[0] as usize),
-                reason: format!("{} label sets for {} crops", label_sets.len(), size[0]),
+                image: label_sets.len().min(count),
+                reason: format!("{} label sets for {count} crops", label_sets.len()),
             });
         }
         check_translation_sets(&label_sets, &geometry)?;
@@ -74,15 +67,8 @@ impl LabelledTranslations {
 
     /// The crops at `indices` as floats in `[0, 1]`, with their geometry and label sets.
     pub fn batch(&self, indices: &[usize]) -> (Tensor, Vec<CropGeometry>, Vec<Vec<Vector3<f64>>>) {
-        let index = Tensor::from_slice(&indices.iter().map(|&i| i as i64).collect::<Vec<_>>());
-        let images = self.images.index_select(0, &index);
-        let images = if images.kind() == Kind::Uint8 {
-            images.to_kind(Kind::Float) / 255.0
-        } else {
-            images.to_kind(Kind::Float)
-        };
         (
-            images,
+            select_images(&self.images, indices),
             indices.iter().map(|&i| self.geometry[i]).collect(),
             indices
                 .iter()

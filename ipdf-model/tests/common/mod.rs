@@ -20,6 +20,35 @@ pub struct CubeRenders {
     pub group: SymmetryGroup,
 }
 
+/// The colour image (RGB bytes, row-major) and the mask (1 on the object) of `scene`'s first
+/// mesh, flat orange under the default lighting, at `pose` in `camera`'s frame.
+pub fn render_cube(
+    scene: &Scene,
+    camera: &PinholeCamera,
+    pose: Isometry3<f64>,
+) -> (Vec<u8>, Vec<u8>) {
+    let instances = [Instance::new(0, pose)];
+    let rendering = scene
+        .render(camera, &instances, Window::full(camera))
+        .unwrap();
+    let rgb = scene
+        .shade(
+            camera,
+            &instances,
+            &[Material::Uniform([0.9, 0.6, 0.2])],
+            &Lighting::default(),
+            &rendering,
+        )
+        .unwrap()
+        .concat();
+    let mask = rendering
+        .instance
+        .iter()
+        .map(|hit| u8::from(hit.is_some()))
+        .collect();
+    (rgb, mask)
+}
+
 pub fn cube_renders(count: usize, seed: u64, size: usize) -> CubeRenders {
     let cube = Primitive::Cuboid { extents: [0.1; 3] };
     let scene = Scene::new(&[cube.mesh().unwrap()]);
@@ -36,25 +65,7 @@ pub fn cube_renders(count: usize, seed: u64, size: usize) -> CubeRenders {
         .iter()
         .map(|rotation| {
             let pose = Isometry3::from_parts(Translation3::new(0.0, 0.0, 0.5), *rotation);
-            let instances = [Instance::new(0, pose)];
-            let rendering = scene
-                .render(&camera, &instances, Window::full(&camera))
-                .unwrap();
-            let rgb = scene
-                .shade(
-                    &camera,
-                    &instances,
-                    &[Material::Uniform([0.9, 0.6, 0.2])],
-                    &Lighting::default(),
-                    &rendering,
-                )
-                .unwrap();
-            let rgb: Vec<u8> = rgb.concat();
-            let mask: Vec<u8> = rendering
-                .instance
-                .iter()
-                .map(|hit| u8::from(hit.is_some()))
-                .collect();
+            let (rgb, mask) = render_cube(&scene, &camera, pose);
             crop_object(&rgb, &mask, 64, 64, &CropOptions::new(size)).unwrap()
         })
         .collect();

@@ -8,9 +8,10 @@ use super::check_extension;
 use anyhow::{Context, Result, bail};
 use bop_dataset::write_json;
 use ipdf::npy::write_f32;
-use ipdf::training::TRANSLATION_DIR;
 use ipdf::training_data::{FileCrop, crop_files, crop_tensor};
-use ipdf::translation_eval::{self, is_translation_run};
+use ipdf::translation_eval::{
+    self, is_translation_run, pose_translation_dir, pose_translation_model,
+};
 use ipdf_model::{
     ArgmaxOptions, CropGeometry, ImplicitPdf, Predictor, TranslationPdf, default_device,
 };
@@ -55,26 +56,20 @@ pub fn run(args: &PredictArgs) -> Result<Value> {
         "the distribution (a NumPy array; the most likely pose goes beside it as .json)",
     )?;
     let translation_only = is_translation_run(&args.checkpoint)?;
-    let rotation = if translation_only {
-        None
-    } else {
-        Some(ImplicitPdf::load(&args.checkpoint, default_device())?)
-    };
-    let translation_dir = if translation_only {
-        args.checkpoint.clone()
-    } else {
-        args.checkpoint.join(TRANSLATION_DIR)
-    };
-    let mut translation = translation_dir
-        .join(ipdf_model::CHECKPOINT_FILE)
-        .exists()
-        .then(|| TranslationPdf::load(&translation_dir, default_device()))
+    let rotation = (!translation_only)
+        .then(|| ImplicitPdf::load(&args.checkpoint, default_device()))
         .transpose()?;
     // A pose run without intrinsics predicts the orientation, and says so once it has.
-    let skipped = rotation.is_some() && translation.is_some() && args.intrinsics.is_none();
-    if skipped {
-        translation = None;
-    }
+    let (translation, skipped) = match &rotation {
+        None => (
+            Some(TranslationPdf::load(&args.checkpoint, default_device())?),
+            None,
+        ),
+        Some(model) if args.intrinsics.is_some() => {
+            (pose_translation_model(&args.checkpoint, model)?, None)
+        }
+        Some(_) => (None, pose_translation_dir(&args.checkpoint)),
+    };
     let size = match (&rotation, &translation) {
         (Some(model), _) => model.config().input_size,
         (None, Some(model)) => model.config().network.input_size,
@@ -82,19 +77,10 @@ pub fn run(args: &PredictArgs) -> Result<Value> {
     } as usize;
     let crop = crop_files(&args.rgb, &args.mask, size)?;
     // Every input is checked before anything is written.
-    let geometry = match &translation {
-        Some(model) => {
-            if model.config().network.input_size as usize != size {
-                bail!(
-                    "{}: the translation model takes {} px crops, the rotation model {size}",
-                    translation_dir.display(),
-                    model.config().network.input_size
-                );
-            }
-            Some(crop_geometry(&crop, args)?)
-        }
-        None => None,
-    };
+    let geometry = translation
+        .as_ref()
+        .map(|_| crop_geometry(&crop, args))
+        .transpose()?;
     let mut result = json!({});
     if let Some(model) = &rotation {
         result = predict_rotation(model, &crop, args)?;
@@ -105,11 +91,11 @@ pub fn run(args: &PredictArgs) -> Result<Value> {
         result["translation"] = summary;
     }
     write_json(&args.out.with_extension("json"), &result)?;
-    if skipped {
+    if let Some(dir) = skipped {
         eprintln!(
             "ipdf predict: no --intrinsics, so the orientation only (the translation model of {} \
              needs the camera's fx,fy,cx,cy)",
-            translation_dir.display()
+            dir.display()
         );
     }
     Ok(result)
