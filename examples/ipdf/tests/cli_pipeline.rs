@@ -278,6 +278,16 @@ fn a_miniature_pipeline_writes_every_artefact() {
         "none.png",
     );
     assert_fails(&["viz", "--out", s(&figure)], "--train-log");
+    assert_fails(
+        &[
+            "pipeline",
+            "--out",
+            s(&dir.path().join("x")),
+            "--translation-epochs",
+            "0",
+        ],
+        "--translation-epochs",
+    );
     // Scene 0 shows the can: the box's model is not drawn on it.
     assert_fails(
         &[

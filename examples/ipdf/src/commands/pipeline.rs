@@ -34,7 +34,7 @@ pub struct PipelineArgs {
     #[arg(long)]
     pub epochs: Option<u64>,
     /// Override the preset's epochs of the translation models.
-    #[arg(long)]
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     pub translation_epochs: Option<u64>,
     /// Override the preset's steps per epoch.
     #[arg(long)]
