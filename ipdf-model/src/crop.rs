@@ -44,19 +44,29 @@ pub fn crop_box(
             ),
         ));
     }
-    let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
-    for (i, _) in mask.iter().enumerate().filter(|&(_, &m)| m != 0) {
-        let (x, y) = (i % width, i / width);
-        (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
-    }
-    if x0 == usize::MAX {
-        return Err(ModelError::EmptyMask);
-    }
+    let (x0, y0, x1, y1) = mask_bounds(mask, width).ok_or(ModelError::EmptyMask)?;
     Ok(CropBox {
         centre_x: (x0 + x1 + 1) as f64 / 2.0,
         centre_y: (y0 + y1 + 1) as f64 / 2.0,
         side: ((x1 - x0 + 1).max(y1 - y0 + 1)) as f64 * (1.0 + options.margin),
     })
+}
+
+/// The inclusive bounding box `(x0, y0, x1, y1)` of the non-zero pixels of `mask` (rows of
+/// `width`), or `None` when there are none; row by row, each row's first and last set pixel.
+fn mask_bounds(mask: &[u8], width: usize) -> Option<(usize, usize, usize, usize)> {
+    let mut bounds: Option<(usize, usize, usize, usize)> = None;
+    for (y, row) in mask.chunks_exact(width).enumerate() {
+        let Some(first) = row.iter().position(|&m| m != 0) else {
+            continue;
+        };
+        let last = row.iter().rposition(|&m| m != 0).unwrap_or(first);
+        bounds = Some(match bounds {
+            None => (first, y, last, y),
+            Some((x0, y0, x1, _)) => (x0.min(first), y0, x1.max(last), y),
+        });
+    }
+    bounds
 }
 
 /// The crop of `rgb` (interleaved 8-bit RGB, `width × height`, row-major) in the square of
@@ -170,6 +180,29 @@ mod tests {
             red_fraction > 0.8,
             "the mask fills the crop: {red_fraction}"
         );
+    }
+
+    proptest::proptest! {
+        /// The row-by-row bounds are the bounding box of the set pixels.
+        #[test]
+        fn mask_bounds_are_the_bounding_box_of_the_set_pixels(
+            width in 1usize..12,
+            bits in proptest::collection::vec(0u8..4, 1..120),
+        ) {
+            // Sparse masks: about a quarter of the pixels set.
+            let mask: Vec<u8> = bits.iter().map(|&b| u8::from(b == 0)).collect();
+            let mask = &mask[..mask.len() / width * width];
+            let set: Vec<(usize, usize)> = (0..mask.len())
+                .filter(|&i| mask[i] != 0)
+                .map(|i| (i % width, i / width))
+                .collect();
+            let expected = (!set.is_empty()).then(|| {
+                let xs = set.iter().map(|p| p.0);
+                let ys = set.iter().map(|p| p.1);
+                (xs.clone().min().unwrap(), ys.clone().min().unwrap(), xs.max().unwrap(), ys.max().unwrap())
+            });
+            proptest::prop_assert_eq!(mask_bounds(mask, width), expected);
+        }
     }
 
     #[test]

@@ -13,6 +13,20 @@ pub const CONTINUOUS_STEPS: usize = 200;
 /// Rotations closer than this (radians) are the same symmetry.
 const SAME_ROTATION: f64 = 1e-6;
 
+/// Whether `a` and `b` are within [`SAME_ROTATION`] of each other: the test of
+/// [`geodesic_distance`] (angle `4·atan2(|a − b|, |a + b|)`, quaternions in one hemisphere)
+/// without its arctangent, `|a − b|² ≤ tan²(SAME_ROTATION / 4)·|a + b|²`. The deduplication of a
+/// can's 400 symmetry rotations compares 80,000 pairs; with `atan2` that was a fifth of a
+/// training run's set-up.
+fn same_rotation(a: &UnitQuaternion<f64>, b: &UnitQuaternion<f64>) -> bool {
+    let (a, mut b) = (a.as_ref().coords, b.as_ref().coords);
+    if a.dot(&b) < 0.0 {
+        b = -b;
+    }
+    let tangent = (SAME_ROTATION / 4.0).tan();
+    (a - b).norm_squared() <= tangent * tangent * (a + b).norm_squared()
+}
+
 /// Rotational symmetry about an axis through a point, in model coordinates.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ContinuousSymmetry {
@@ -58,10 +72,7 @@ impl SymmetryGroup {
         }
         let mut unique: Vec<UnitQuaternion<f64>> = Vec::with_capacity(out.len());
         for q in out {
-            if unique
-                .iter()
-                .all(|u| geodesic_distance(u, &q) > SAME_ROTATION)
-            {
+            if unique.iter().all(|u| !same_rotation(u, &q)) {
                 unique.push(q);
             }
         }

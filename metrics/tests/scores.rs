@@ -69,6 +69,26 @@ proptest! {
         prop_assert_eq!(group.classes().len(), [2, 4, 1][kind as usize]);
     }
 
+    /// A symmetry set holds each rotation once: a discrete symmetry listed twice, or one a
+    /// continuous axis already generates, adds nothing; what remains is pairwise distinct.
+    #[test]
+    fn symmetry_sets_hold_each_rotation_once(kind in 0u8..3, steps in 1usize..60) {
+        let mut group = test_group(kind);
+        group.discrete.extend(group.discrete.clone());
+        if let Some(axis) = group.continuous.first().map(|c| c.axis) {
+            // A turn the axis's discretisation also makes (one step), slightly perturbed.
+            let step = std::f64::consts::TAU / steps as f64 + 1e-9;
+            group.discrete.push(nalgebra::Isometry3::rotation(axis.into_inner() * step));
+        }
+        let rotations = group.rotations(steps);
+        prop_assert_eq!(rotations.len(), [2 * steps, 4, steps][kind as usize]);
+        for (i, a) in rotations.iter().enumerate() {
+            for b in &rotations[i + 1..] {
+                prop_assert!(geodesic_distance(a, b) > 1e-6);
+            }
+        }
+    }
+
     #[test]
     fn uniform_scores_minus_ln_pi_squared(level in 0u8..=3, seed in any::<u64>()) {
         let uniform = Distribution::uniform(&Grid::new(level).unwrap());

@@ -17,7 +17,7 @@ use bop_dataset::{
     BopDataset, FileError, Intrinsics, PseudoInstance, SceneDir, read_models_info, read_pseudo_gt,
     read_scene_camera, read_scene_gt, read_scene_gt_info,
 };
-use metrics::SymmetryGroup;
+use metrics::{CONTINUOUS_STEPS, SymmetryGroup};
 
 use crate::PipelineError;
 
@@ -220,6 +220,12 @@ fn scene_instances(
             return Err(FileError::new(&scene.gt_path(), "file", reason).into());
         }
     };
+    // The symmetry rotations, once per scene: a can's 400 take 80,000 comparisons to build.
+    let analytical = group.rotations(options.continuous_steps);
+    let truth_symmetries = group.rotations(CONTINUOUS_STEPS);
+    let turned = |rotation: &UnitQuaternion<f64>, symmetries: &[UnitQuaternion<f64>]| {
+        symmetries.iter().map(|s| rotation * s).collect::<Vec<_>>()
+    };
     let mut out = Vec::new();
     for (im_id, ids) in object_ids {
         for (instance, &obj_id) in ids.iter().enumerate() {
@@ -237,9 +243,10 @@ fn scene_instances(
                     truth.map(|t| (vec![t.pose.rotation], vec![millimetres(&t.pose)]))
                 }
                 LabelSource::Analytical => truth.map(|t| {
-                    let symmetries = group.rotations(options.continuous_steps);
-                    let rotations = symmetries.iter().map(|s| t.pose.rotation * s).collect();
-                    (rotations, vec![millimetres(&t.pose)])
+                    (
+                        turned(&t.pose.rotation, &analytical),
+                        vec![millimetres(&t.pose)],
+                    )
                 }),
                 LabelSource::Pseudo => pseudo
                     .as_ref()
@@ -269,7 +276,7 @@ fn scene_instances(
                 labels,
                 translations,
                 intrinsics,
-                truth: truth.map(|t| group.expand(&t.pose.rotation)),
+                truth: truth.map(|t| turned(&t.pose.rotation, &truth_symmetries)),
                 truth_pose: truth
                     .map(|t| Isometry3::from_parts(millimetres(&t.pose).into(), t.pose.rotation)),
             });
