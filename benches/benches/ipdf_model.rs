@@ -19,7 +19,7 @@ use nalgebra::{UnitQuaternion, Vector3};
 use so3_grid::random_rotations;
 use tch::{Device, Kind, Tensor};
 
-// As the `ipdf` binary: jemalloc keeping freed pages (see examples/ipdf/src/allocator.rs).
+// As the `ipdf` binary: mimalloc keeping freed pages (see examples/ipdf/src/allocator.rs).
 ipdf::keep_freed_pages_allocator!();
 
 const BATCH: i64 = 32;
