@@ -322,26 +322,32 @@ fn train_models(
     })
 }
 
-/// Stage 4, scores on the validation split (`eval_levelN.json` per run, kept).
+/// Stage 4, scores on the validation split (`eval_levelN.json` per run, kept), the runs not
+/// scored yet `plan.concurrent_models` at a time, as in training.
 fn evaluate_models(plan: &Plan, runs: &[ModelRun]) -> Result<Vec<EvalResult>, PipelineError> {
+    let pending: Vec<&ModelRun> = runs
+        .iter()
+        .filter(|run| !eval_file(&run.dir, plan.eval_level).exists())
+        .collect();
+    on_threads(&pending, plan.concurrent_models, |run| {
+        let request = EvalRequest {
+            checkpoint: run.dir.clone(),
+            dataset: None,
+            models_dir: None,
+            split: "val".into(),
+            level: plan.eval_level,
+            dense: false,
+        };
+        let progress = bar(0, "images");
+        write_json(
+            &eval_file(&run.dir, plan.eval_level),
+            &evaluate_run(&request, &progress)?,
+        )?;
+        progress.finish_and_clear();
+        Ok(())
+    })?;
     runs.iter()
-        .map(|run| {
-            let path = eval_file(&run.dir, plan.eval_level);
-            if !path.exists() {
-                let request = EvalRequest {
-                    checkpoint: run.dir.clone(),
-                    dataset: None,
-                    models_dir: None,
-                    split: "val".into(),
-                    level: plan.eval_level,
-                    dense: false,
-                };
-                let progress = bar(0, "images");
-                write_json(&path, &evaluate_run(&request, &progress)?)?;
-                progress.finish_and_clear();
-            }
-            Ok(read_json_as(&path)?)
-        })
+        .map(|run| Ok(read_json_as(&eval_file(&run.dir, plan.eval_level))?))
         .collect()
 }
 
