@@ -258,7 +258,14 @@ impl Report {
             .find_map(|s| s.translation)
             .map_or(0.0, |t| t.cell_mm);
         text.push_str(&format!(
-            "\n## Translation and 6D pose\n\nEach model above has a translation model trained on the same label sets              (the translations of the labels). Translation LLH: mean ln p(t | I) at the ground-truth translation,              density per mm³, from a hierarchical distribution down to {cell:.0} mm cells; errors of the most likely              translation (gradient ascent from the best cells), split along and across the line of sight; joint LLH:              rotation LLH + translation LLH; ADD-S AUC: the 6D pose of the two most likely values, thresholds              up to {:.0}% of the object's diameter (BOP).\n\n",
+            "\n## Translation and 6D pose\n\nThe Analytical and Pseudo models above each have a \
+             translation model trained on the translations of the same label sets (Single's would \
+             be Analytical's). Translation LLH: mean ln p(t | I) at the ground-truth translation, \
+             density per mm³, from a hierarchical distribution down to {cell:.0} mm cells; errors \
+             of the most likely translation (gradient ascent from the best cells), split along and \
+             across the line of sight; joint LLH: rotation LLH + translation LLH; ADD-S AUC: the \
+             6D pose of the two most likely values, thresholds up to {:.0}% of the object's \
+             diameter (BOP).\n\n",
             100.0 * ADD_S_AUC_FRACTION
         ));
         pose_table(text, &self.models, &LABELS);
