@@ -94,6 +94,10 @@ pub struct EvalRequest {
     pub dataset: Option<PathBuf>,
     /// Another models folder of the dataset (default: the one the model was trained with).
     pub models_dir: Option<String>,
+    /// Another object id in that dataset (default: the one the model was trained on): a model
+    /// trained on synthetic renders of a mesh, scored on a real dataset that numbers the
+    /// object otherwise.
+    pub obj_id: Option<u32>,
     /// The split scored (it needs `scene_gt.json`).
     pub split: String,
     /// The level of the evaluation grid.
@@ -181,12 +185,15 @@ pub fn evaluate_translation_run(
     })
 }
 
-/// The run's `run.json` (with the request's models folder) and its dataset (the request's copy,
-/// or where it was trained).
+/// The run's `run.json` (with the request's models folder and object id) and its dataset (the
+/// request's copy, or where it was trained).
 fn run_dataset(request: &EvalRequest) -> Result<(RunInfo, BopDataset), PipelineError> {
     let mut info = RunInfo::read(&request.checkpoint)?;
     if let Some(models_dir) = &request.models_dir {
         info.models_dir.clone_from(models_dir);
+    }
+    if let Some(obj_id) = request.obj_id {
+        info.obj_id = obj_id;
     }
     let dataset = info.dataset(request.dataset.as_deref())?;
     Ok((info, dataset))

@@ -39,7 +39,7 @@ fn pose_runs_train_score_and_predict_translations() {
             "--out",
             s(&data),
             "--objects",
-            "box",
+            "box,can",
             "--frames",
             frames,
             "--split",
@@ -54,6 +54,8 @@ fn pose_runs_train_score_and_predict_translations() {
             "train",
             "--dataset",
             s(&data),
+            "--object",
+            "box",
             "--labels",
             "single",
             "--target",
@@ -114,6 +116,27 @@ fn pose_runs_train_score_and_predict_translations() {
     let alone = ipdf_json(&["eval", "--checkpoint", s(&translation_run)]);
     assert_eq!(alone["translation"], *translation);
     assert!(alone.get("llh").is_none());
+    // --obj-id scores the model on another object of the dataset (as for a model trained on
+    // renders of a mesh and scored on a real dataset that numbers it otherwise): the can's
+    // instances, its diameter; an id the dataset lacks fails with one line.
+    let box_id = &trained["rotation"]["obj_id"];
+    let can_id = if *box_id == 1 { "2" } else { "1" };
+    let on_can = ipdf_json(&[
+        "eval",
+        "--checkpoint",
+        s(&run),
+        "--level",
+        "2",
+        "--obj-id",
+        can_id,
+    ]);
+    assert_eq!(on_can["obj_id"].to_string(), can_id);
+    assert_eq!(on_can["translation"]["images"], 3);
+    assert_ne!(on_can["pose"]["diameter_mm"], pose["diameter_mm"]);
+    assert_fails(
+        &["eval", "--checkpoint", s(&run), "--obj-id", "7"],
+        "7: no such object",
+    );
 
     let scene = data.join("val/000000");
     let (rgb, mask) = (
@@ -216,7 +239,15 @@ fn pose_runs_train_score_and_predict_translations() {
         assert_fails(&args, expected);
     }
     let fail_train = |extra: &[&str], expected: &str| {
-        let mut w = vec!["train", "--dataset", s(&data), "--labels", "single"];
+        let mut w = vec![
+            "train",
+            "--dataset",
+            s(&data),
+            "--object",
+            "box",
+            "--labels",
+            "single",
+        ];
         w.extend(extra);
         assert_fails(&w, expected);
     };

@@ -22,6 +22,10 @@ pub struct EvalArgs {
     /// The dataset's models folder (default: the one the model was trained with).
     #[arg(long)]
     pub models_dir: Option<String>,
+    /// The object's id in that dataset (default: the one the model was trained on), e.g. a
+    /// real BOP dataset's id for a model trained on `ipdf synth --mesh` renders.
+    #[arg(long)]
+    pub obj_id: Option<u32>,
     /// Split to evaluate on.
     #[arg(long, default_value = "val")]
     pub split: String,
@@ -44,6 +48,7 @@ pub fn run(args: &EvalArgs) -> Result<serde_json::Value> {
         checkpoint: args.checkpoint.clone(),
         dataset: args.dataset.clone(),
         models_dir: args.models_dir.clone(),
+        obj_id: args.obj_id,
         split: args.split.clone(),
         level: args.level,
         dense: args.dense,

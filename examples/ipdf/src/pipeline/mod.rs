@@ -334,6 +334,7 @@ fn evaluate_models(plan: &Plan, runs: &[ModelRun]) -> Result<Vec<EvalResult>, Pi
             checkpoint: run.dir.clone(),
             dataset: None,
             models_dir: None,
+            obj_id: None,
             split: "val".into(),
             level: plan.eval_level,
             dense: false,
