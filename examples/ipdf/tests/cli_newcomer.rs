@@ -6,7 +6,7 @@ mod common;
 
 use std::path::Path;
 
-use common::{assert_fails, ipdf, ipdf_json, s};
+use common::{assert_fails, ipdf, ipdf_json, s, train_single};
 
 /// A copy of `ply` (binary PLY of `ipdf synth`, float xyz, uchar-int faces) with coordinates
 /// multiplied by `factor`, written as ASCII PLY.
@@ -366,16 +366,8 @@ fn viz_names_the_scenes_that_hold_the_models_object_and_resume_names_encoders_ri
     let data = dataset(dir.path());
     let run = dir.path().join("run");
     let train = |encoder: &'static str| {
-        let mut words = vec![
-            "train",
-            "--dataset",
-            s(&data),
-            "--object",
-            "box",
-            "--labels",
-        ];
+        let mut words = train_single(&data, "box");
         words.extend([
-            "single",
             "--out",
             s(&run),
             "--val-split",

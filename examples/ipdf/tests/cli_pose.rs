@@ -5,7 +5,7 @@ mod common;
 
 use std::path::Path;
 
-use common::{assert_fails, ipdf_json, s};
+use common::{assert_fails, ipdf_json, s, train_single};
 use serde_json::Value;
 
 fn read(path: &Path) -> Value {
@@ -49,15 +49,11 @@ fn pose_runs_train_score_and_predict_translations() {
         ]);
     }
     let run = dir.path().join("run");
+    // The box's single labels: every training command below starts so.
+    let box_run = train_single(&data, "box");
     let train = |target: &str, out: &Path| {
-        let words = [
-            "train",
-            "--dataset",
-            s(&data),
-            "--object",
-            "box",
-            "--labels",
-            "single",
+        let mut words = box_run.to_vec();
+        words.extend([
             "--target",
             target,
             "--out",
@@ -76,7 +72,7 @@ fn pose_runs_train_score_and_predict_translations() {
             "4",
             "--translation-queries",
             "64",
-        ];
+        ]);
         ipdf_json(&words)
     };
     let trained = train("pose", &run);
@@ -239,15 +235,7 @@ fn pose_runs_train_score_and_predict_translations() {
         assert_fails(&args, expected);
     }
     let fail_train = |extra: &[&str], expected: &str| {
-        let mut w = vec![
-            "train",
-            "--dataset",
-            s(&data),
-            "--object",
-            "box",
-            "--labels",
-            "single",
-        ];
+        let mut w = box_run.to_vec();
         w.extend(extra);
         assert_fails(&w, expected);
     };

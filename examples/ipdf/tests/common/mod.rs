@@ -34,6 +34,20 @@ pub fn assert_fails(args: &[&str], expected: &str) {
     assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
 }
 
+/// The start of `ipdf train` on `object`'s single labels of the dataset at `data`.
+pub fn train_single<'a>(data: &'a Path, object: &'a str) -> Vec<&'a str> {
+    let data = s(data);
+    vec![
+        "train",
+        "--dataset",
+        data,
+        "--object",
+        object,
+        "--labels",
+        "single",
+    ]
+}
+
 /// `path` as a `&str`.
 pub fn s(path: &Path) -> &str {
     path.to_str().expect("UTF-8 path")
