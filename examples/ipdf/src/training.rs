@@ -96,6 +96,28 @@ pub struct TrainRequest {
     pub seed: u64,
 }
 
+impl TrainRequest {
+    /// The learning rate per step: linear warm-up over 5% of the steps to the peak, then
+    /// cosine decay to 0 at the last.
+    fn schedule(&self) -> LearningRateSchedule {
+        let total = (self.epochs * self.steps_per_epoch).max(1);
+        LearningRateSchedule {
+            peak: self.learning_rate,
+            warmup_steps: total / 20,
+            total_steps: total,
+        }
+    }
+
+    /// The paper's occlusion augmentation, or colour augmentation only.
+    fn augmentation(&self) -> Augmentation {
+        if self.occlusion {
+            Augmentation::OCCLUSION
+        } else {
+            Augmentation::COLOUR
+        }
+    }
+}
+
 /// What a training run did: the JSON of `ipdf train`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TrainResult {
@@ -296,21 +318,12 @@ fn open_trainer(request: &TrainRequest, info: &RunInfo) -> Result<Trainer, Pipel
     if let Some(path) = &request.pretrained {
         load_backbone(&mut model, path)?;
     }
-    let total = (request.epochs * request.steps_per_epoch).max(1);
     let options = TrainOptions {
-        schedule: LearningRateSchedule {
-            peak: request.learning_rate,
-            warmup_steps: total / 20,
-            total_steps: total,
-        },
+        schedule: request.schedule(),
         queries: QuerySampling::Grid {
             level: request.query_level,
         },
-        augmentation: if request.occlusion {
-            Augmentation::OCCLUSION
-        } else {
-            Augmentation::COLOUR
-        },
+        augmentation: request.augmentation(),
         seed: request.seed,
         ..TrainOptions::default()
     };
@@ -371,19 +384,10 @@ fn open_translation_trainer(
     if let Some(path) = &request.pretrained {
         load_translation_backbone(&mut model, path)?;
     }
-    let total = (request.epochs * request.steps_per_epoch).max(1);
     let options = TranslationTrainOptions {
-        schedule: LearningRateSchedule {
-            peak: request.learning_rate,
-            warmup_steps: total / 20,
-            total_steps: total,
-        },
+        schedule: request.schedule(),
         queries: request.translation_queries,
-        augmentation: if request.occlusion {
-            Augmentation::OCCLUSION
-        } else {
-            Augmentation::COLOUR
-        },
+        augmentation: request.augmentation(),
         seed: request.seed,
         ..TranslationTrainOptions::default()
     };

@@ -23,6 +23,11 @@ fn read_npy(path: &Path) -> (Vec<u64>, Vec<f32>) {
     (shape, npy.into_vec::<f32>().unwrap())
 }
 
+/// Owned arguments as the `&str`s the helpers take.
+fn strs(words: &[String]) -> Vec<&str> {
+    words.iter().map(String::as_str).collect()
+}
+
 fn finite(value: &Value) -> f64 {
     let v = value.as_f64().unwrap_or(f64::NAN);
     assert!(v.is_finite(), "{value}");
@@ -51,19 +56,20 @@ fn pose_runs_train_score_and_predict_translations() {
     let run = dir.path().join("run");
     // The box's single labels: every training command below starts so.
     let box_run = train_single(&data, "box");
+    // The network of every run here (a run folder is refused for another one).
+    let network = [
+        "--encoder",
+        "small-cnn",
+        "--input-size",
+        "32",
+        "--head",
+        "16,16",
+    ];
     let train = |target: &str, out: &Path| {
         let mut words = box_run.to_vec();
+        words.extend(["--target", target, "--out", s(out)]);
+        words.extend(network);
         words.extend([
-            "--target",
-            target,
-            "--out",
-            s(out),
-            "--encoder",
-            "small-cnn",
-            "--input-size",
-            "32",
-            "--head",
-            "16,16",
             "--epochs",
             "2",
             "--steps-per-epoch",
@@ -142,8 +148,9 @@ fn pose_runs_train_score_and_predict_translations() {
     let k = &read(&scene.join("scene_camera.json"))["0"]["cam_K"];
     let intrinsics = format!("{},{},{},{}", k[0], k[4], k[2], k[5]);
     let out = dir.path().join("pose.npy");
-    let predict = |run: &Path, intrinsics: &str| {
-        ipdf_json(&[
+    // `ipdf predict` of `run` on the first validation image, then `extra`.
+    let predict_args = |run: &Path, extra: &[&str]| {
+        let mut w = vec![
             "predict",
             "--checkpoint",
             s(run),
@@ -151,13 +158,17 @@ fn pose_runs_train_score_and_predict_translations() {
             s(&rgb),
             "--mask",
             s(&mask),
-            "--level",
-            "1",
-            "--intrinsics",
-            intrinsics,
             "--out",
             s(&out),
-        ])
+        ];
+        w.extend(extra);
+        w.iter().map(|a| a.to_string()).collect::<Vec<_>>()
+    };
+    let predict = |run: &Path, intrinsics: &str| {
+        ipdf_json(&strs(&predict_args(
+            run,
+            &["--level", "1", "--intrinsics", intrinsics],
+        )))
     };
     let predicted = predict(&run, &intrinsics);
     assert_eq!(predicted["cells"], 576);
@@ -181,58 +192,17 @@ fn pose_runs_train_score_and_predict_translations() {
     assert!(only.get("level").is_none());
 
     // Bad inputs: one line each, nothing half-written.
-    let words = |extra: &[&str]| {
-        let mut w = vec![
-            "predict",
-            "--checkpoint",
-            s(&run),
-            "--rgb",
-            s(&rgb),
-            "--mask",
-            s(&mask),
-        ];
-        w.extend(["--out", s(&out)]);
-        w.extend(extra);
-        w.iter().map(|a| a.to_string()).collect::<Vec<_>>()
-    };
     // A pose run without intrinsics predicts the orientation only; a translation run needs
     // them.
-    let orientation = ipdf_json(&[
-        "predict",
-        "--checkpoint",
-        s(&run),
-        "--rgb",
-        s(&rgb),
-        "--mask",
-        s(&mask),
-        "--level",
-        "1",
-        "--out",
-        s(&out),
-    ]);
+    let orientation = ipdf_json(&strs(&predict_args(&run, &["--level", "1"])));
     assert!(orientation.get("translation").is_none(), "{orientation}");
     assert!(orientation["argmax"].get("cam_t_m2c").is_none());
-    assert_fails(
-        &[
-            "predict",
-            "--checkpoint",
-            s(&translation_run),
-            "--rgb",
-            s(&rgb),
-            "--mask",
-            s(&mask),
-            "--out",
-            s(&out),
-        ],
-        "--intrinsics",
-    );
+    assert_fails(&strs(&predict_args(&translation_run, &[])), "--intrinsics");
     for (extra, expected) in [
         (vec!["--intrinsics", "600,600,320"], "intrinsics"),
         (vec!["--intrinsics", "600,600,5000,240"], "outside"),
     ] {
-        let args = words(&extra);
-        let args: Vec<&str> = args.iter().map(String::as_str).collect();
-        assert_fails(&args, expected);
+        assert_fails(&strs(&predict_args(&run, &extra)), expected);
     }
     let fail_train = |extra: &[&str], expected: &str| {
         let mut w = box_run.to_vec();
@@ -252,19 +222,7 @@ fn pose_runs_train_score_and_predict_translations() {
         "translation-queries",
     );
     // A rotation run's folder is not continued as a translation run.
-    fail_train(
-        &[
-            "--target",
-            "translation",
-            "--encoder",
-            "small-cnn",
-            "--input-size",
-            "32",
-            "--head",
-            "16,16",
-            "--out",
-            s(&run),
-        ],
-        "other data",
-    );
+    let mut other_target = vec!["--target", "translation", "--out", s(&run)];
+    other_target.extend(network);
+    fail_train(&other_target, "other data");
 }
