@@ -136,7 +136,7 @@ fn evaluation(c: &mut Criterion) {
     let model = translation_model(EncoderKind::Resnet18);
     let predictor = TranslationPredictor::new(&model);
     let geometry = crop_geometry();
-    let options = RefineOptions::translation(&model.space().volume, 2.0);
+    let options = predictor.refine_options(&geometry, 2.0);
     group.bench_function("translation_hierarchical_2mm_resnet18_96px", |b| {
         b.iter(|| black_box(predictor.hierarchical(&image, &geometry, &options).unwrap()))
     });

@@ -56,7 +56,7 @@
 //!
 //! ```
 //! use ipdf_model::{
-//!     CameraIntrinsics, CropBox, CropGeometry, RefineOptions, TranslationConfig, TranslationPdf,
+//!     CameraIntrinsics, CropBox, CropGeometry, TranslationConfig, TranslationPdf,
 //!     TranslationPredictor, TranslationSpace, TranslationTrainOptions, TranslationTrainer,
 //! };
 //! use nalgebra::Vector3;
@@ -77,7 +77,7 @@
 //!
 //! let model = trainer.into_model();
 //! let predictor = TranslationPredictor::new(&model);
-//! let cells = RefineOptions::translation(&model.space().volume, 2.0); // down to 2 mm cells
+//! let cells = predictor.refine_options(&geometry[0], 2.0); // the crop's volume in 2 mm cells
 //! let distribution = predictor.hierarchical(&images.get(0), &geometry[0], &cells)?;
 //! assert!((distribution.masses.iter().sum::<f64>() - 1.0).abs() < 1e-9);
 //! # Ok::<(), ipdf_model::ModelError>(())
@@ -120,8 +120,8 @@ pub use pretrained::{load_backbone, load_translation_backbone};
 pub use refine::{CellHierarchy, CellMasses, RefineOptions, So3Cells, refine, refine_on};
 pub use train::{StepReport, TrainOptions, Trainer};
 pub use translation::{
-    CameraIntrinsics, CropBox, CropGeometry, LabelledTranslations, MAX_OCTREE_LEVEL,
-    TranslationArgmax, TranslationArgmaxOptions, TranslationConfig, TranslationPdf,
-    TranslationPredictor, TranslationSpace, TranslationTrainOptions, TranslationTrainer,
-    WorkingVolume, translation_validation_llh, translations_to_tensor,
+    CROP_VOLUME_SPAN, CameraIntrinsics, CropBox, CropGeometry, LabelledTranslations,
+    MAX_OCTREE_LEVEL, TranslationArgmax, TranslationArgmaxOptions, TranslationConfig,
+    TranslationPdf, TranslationPredictor, TranslationSpace, TranslationTrainOptions,
+    TranslationTrainer, WorkingVolume, translation_validation_llh, translations_to_tensor,
 };

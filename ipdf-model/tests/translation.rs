@@ -117,26 +117,26 @@ fn translations_are_learned_to_a_few_millimetres() {
     }
     let model = trainer.into_model();
     let predictor = TranslationPredictor::new(&model);
-    let argmax_options = TranslationArgmaxOptions::for_model(&model);
-    let volume = model.space().volume;
+    let argmax_options = TranslationArgmaxOptions::default();
     let mut errors = Vec::new();
     let mut log_likelihoods = Vec::new();
+    let mut uniform_llhs = Vec::new();
     for (i, truth) in test.translations.iter().enumerate() {
         let image = test.images.get(i as i64);
         let geometry = &test.geometry[i];
         let argmax = predictor.argmax(&image, geometry, &argmax_options).unwrap();
         errors.push((argmax.translation - truth).norm());
         assert!(argmax.score >= argmax.start_score);
-        let distribution = predictor
-            .hierarchical(&image, geometry, &argmax_options.refine)
-            .unwrap();
+        let refine = predictor.refine_options(geometry, argmax_options.cell_size);
+        let distribution = predictor.hierarchical(&image, geometry, &refine).unwrap();
         assert!((distribution.masses.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+        uniform_llhs.push(-predictor.volume(geometry).extent().product().ln());
         let llh = predictor
             .log_densities(&image, geometry, &[*truth], &distribution)
             .unwrap()[0];
         log_likelihoods.push(llh);
     }
-    let uniform_llh = -volume.extent().product().ln();
+    let uniform_llh = uniform_llhs.iter().sum::<f64>() / uniform_llhs.len() as f64;
     let mean_llh = log_likelihoods.iter().sum::<f64>() / log_likelihoods.len() as f64;
     let median_error = median(errors.clone());
     println!(
@@ -163,6 +163,7 @@ fn translations_are_learned_to_a_few_millimetres() {
     // cells of at most 9 mm), and gradient ascent against the densest cell.
     let image = test.images.get(0);
     let geometry = &test.geometry[0];
+    let volume = predictor.volume(geometry);
     let dense = predictor
         .hierarchical(
             &image,
@@ -200,11 +201,10 @@ fn translations_are_learned_to_a_few_millimetres() {
         volume.cell_centre(level, index).unwrap()
     };
     assert!((densest(&budgeted) - densest(&dense)).norm() < 1e-9);
-    let fine = predictor
-        .hierarchical(&image, geometry, &argmax_options.refine)
-        .unwrap();
+    let refine = predictor.refine_options(geometry, argmax_options.cell_size);
+    let fine = predictor.hierarchical(&image, geometry, &refine).unwrap();
     let argmax = predictor.argmax(&image, geometry, &argmax_options).unwrap();
-    let finest = volume.extent() / f64::from(1u32 << argmax_options.refine.level);
+    let finest = volume.extent() / f64::from(1u32 << refine.level);
     let offset = argmax.translation - densest(&fine);
     assert!(
         offset.norm() < 2.0 * finest.norm(),
@@ -230,6 +230,36 @@ fn gaussian(
 
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(16))]
+
+    #[test]
+    fn a_crops_volume_holds_every_translation_seen_in_the_crop_between_the_volumes_depths(
+        cx in 200.0f64..440.0, cy in 150.0f64..330.0, centre_x in 0.0f64..640.0,
+        centre_y in 0.0f64..480.0, side in 20.0f64..300.0, u in -1.0f64..1.0, v in -1.0f64..1.0,
+        depth in 0.0f64..1.0,
+    ) {
+        let geometry = CropGeometry {
+            crop: ipdf_model::CropBox { centre_x, centre_y, side },
+            intrinsics: CameraIntrinsics { fx: 600.0, fy: 610.0, cx, cy },
+            width: 640,
+            height: 480,
+        };
+        let volume = WorkingVolume::new([-900.0, -700.0, 400.0], [900.0, 700.0, 1300.0]).unwrap();
+        let space = TranslationSpace { volume, crop_extent: 150.0 };
+        let crop_volume = space.crop_volume(&geometry);
+        // A translation that projects into the crop square (pixel centres at integers).
+        let z = 400.0 + 900.0 * depth;
+        let (pu, pv) = (centre_x + 0.5 * side * u, centre_y + 0.5 * side * v);
+        let t = Vector3::new((pu - cx - 0.5) / 600.0 * z, (pv - cy - 0.5) / 610.0 * z, z);
+        prop_assert!(crop_volume.contains(&t), "{t:?} outside {crop_volume:?}");
+        prop_assert_eq!((crop_volume.min[2], crop_volume.max[2]), (400.0, 1300.0));
+        // As wide as the span's square at the farthest depth, and wider only by how far its
+        // edges' rays move between the nearest and farthest depth: narrow wherever the crop is.
+        let half = 0.5 * ipdf_model::CROP_VOLUME_SPAN * side;
+        let slope = ((centre_x - half - cx - 0.5).abs()).max((centre_x + half - cx - 0.5).abs()) / 600.0;
+        let width = 2.0 * half * 1300.0 / 600.0;
+        let extent = crop_volume.extent().x;
+        prop_assert!(extent >= width - 1e-9 && extent <= width + slope * 900.0 + 1e-9, "{extent} vs {width}");
+    }
 
     #[test]
     fn octree_refinement_sums_to_one_equals_dense_and_integrates_a_gaussian(
@@ -323,7 +353,7 @@ fn bad_translation_input_gets_typed_errors() {
             .argmax(
                 &data.images.get(0),
                 &outside[1],
-                &TranslationArgmaxOptions::for_model(trainer.model())
+                &TranslationArgmaxOptions::default()
             )
             .is_err()
     );

@@ -84,13 +84,14 @@ pub fn predict_translation(
 ) -> Result<TranslationPrediction, PipelineError> {
     let predictor = TranslationPredictor::new(model);
     let options = TranslationArgmaxOptions {
-        refine: RefineOptions::translation(&model.space().volume, TRANSLATION_CELL_MM),
-        ..TranslationArgmaxOptions::for_model(model)
+        cell_size: TRANSLATION_CELL_MM,
+        ..TranslationArgmaxOptions::default()
     };
-    let distribution = predictor.hierarchical(crop, geometry, &options.refine)?;
+    let refine = predictor.refine_options(geometry, options.cell_size);
+    let distribution = predictor.hierarchical(crop, geometry, &refine)?;
     let argmax = predictor.argmax_from(crop, geometry, &distribution, &options)?;
     Ok(TranslationPrediction {
-        centres: predictor.cell_centres(&distribution)?,
+        centres: predictor.cell_centres(&distribution, geometry)?,
         distribution,
         argmax,
     })

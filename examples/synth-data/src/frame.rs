@@ -20,15 +20,25 @@ pub struct ViewRange {
     pub distance: (f64, f64),
     /// The object's origin lies within this distance (metres) of the table's centre, in x and y.
     pub table_offset: f64,
+    /// Where the object's centre appears in the image: 0 on the principal point (the camera
+    /// looks at it), 1 anywhere its bounding sphere stays inside the image, fractions between.
+    /// Real objects are seldom in the middle of the frame.
+    pub off_centre: f64,
+    /// The camera's roll about its line of sight, uniform within ±this many degrees (0: the
+    /// table's horizon is level in the image).
+    pub roll_deg: f64,
 }
 
 impl Default for ViewRange {
-    /// Elevation 15–80°, distance 0.5–1.0 m, object within ±5 cm of the table's centre.
+    /// Elevation 15–80°, distance 0.5–1.0 m, object within ±5 cm of the table's centre, in
+    /// the middle of a level image.
     fn default() -> Self {
         Self {
             elevation_deg: (15.0, 80.0),
             distance: (0.5, 1.0),
             table_offset: 0.05,
+            off_centre: 0.0,
+            roll_deg: 0.0,
         }
     }
 }
@@ -94,6 +104,8 @@ pub struct FrameRenderer {
     /// The object's bounding-box corners (model frame).
     corners: [Point3<f64>; 8],
     centre: Point3<f64>,
+    /// Half the bounding box's diagonal (metres).
+    radius: f64,
 }
 
 /// The images and annotations of one frame.
@@ -154,6 +166,7 @@ impl FrameRenderer {
                 .collect::<Result<_, _>>()?,
             corners,
             centre: nalgebra::center(&low, &high),
+            radius: (high - low).norm() / 2.0,
         })
     }
 
@@ -168,7 +181,9 @@ impl FrameRenderer {
         let mut offset = || (rng.random::<f64>() * 2.0 - 1.0) * view.table_offset;
         let (x, y) = (offset(), offset());
         let world_from_object = self.object.place(rng, x, y);
-        let camera_from_world = look_at(&(world_from_object * self.centre), view, rng);
+        let centre = world_from_object * self.centre;
+        let camera_from_world = look_at(&centre, view, rng);
+        let camera_from_world = reframe(camera_from_world, &centre, self.radius, camera, view, rng);
         let pose = camera_from_world * world_from_object;
         let mut instances = vec![Instance::new(0, pose), Instance::new(1, camera_from_world)];
         let mut materials = vec![style.material.clone(), Material::Uniform([0.55, 0.5, 0.45])];
@@ -291,6 +306,36 @@ fn look_at<R: Rng>(target: &Point3<f64>, view: &ViewRange, rng: &mut R) -> Isome
     Isometry3::from_parts(Translation3::from(-(rotation * eye.coords)), rotation)
 }
 
+/// `camera_from_world` (looking at `target`) turned about its centre so that `target` appears
+/// at a random pixel within `view.off_centre` of the room a bounding sphere of `radius` leaves
+/// in the image, and rolled by up to `view.roll_deg`; unchanged, drawing nothing from `rng`,
+/// when both are 0.
+fn reframe<R: Rng>(
+    camera_from_world: Isometry3<f64>,
+    target: &Point3<f64>,
+    radius: f64,
+    camera: &PinholeCamera,
+    view: &ViewRange,
+    rng: &mut R,
+) -> Isometry3<f64> {
+    if view.off_centre == 0.0 && view.roll_deg == 0.0 {
+        return camera_from_world;
+    }
+    let mut symmetric = |half: f64| (rng.random::<f64>() * 2.0 - 1.0) * half;
+    let roll = symmetric(view.roll_deg.to_radians());
+    let depth = (camera_from_world * target).z.max(1e-9);
+    // The room on each side of the principal point, less the sphere's projected radius.
+    let room = |centre: f64, size: u32, focal: f64| {
+        (centre.min(f64::from(size) - centre) - focal * radius / depth).max(0.0) * view.off_centre
+    };
+    let u = symmetric(room(camera.cx, camera.width, camera.fx)) / camera.fx;
+    let v = symmetric(room(camera.cy, camera.height, camera.fy)) / camera.fy;
+    let aim = UnitQuaternion::rotation_between(&Vector3::z(), &Vector3::new(u, v, 1.0))
+        .unwrap_or_else(UnitQuaternion::identity);
+    let turn = aim * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), roll);
+    Isometry3::from_parts(Translation3::identity(), turn) * camera_from_world
+}
+
 /// BOP's boxes `[x, y, w, h]` and pixel counts of a frame.
 fn gt_info(mask: &[bool], mask_visib: &[bool], depth: &[f32], width: usize) -> GtInfo {
     let bbox = |pixels: &[bool]| match mask_box(pixels, width) {
@@ -382,5 +427,47 @@ mod tests {
                 "{elevation}"
             );
         }
+    }
+
+    #[test]
+    fn reframing_moves_the_object_anywhere_inside_the_image_and_rolls_the_camera() {
+        let camera = crate::SynthOptions::t_less_camera().camera;
+        let target = Point3::new(0.02, -0.03, 0.05);
+        let radius = 0.08;
+        let level = ViewRange::default();
+        let moved = ViewRange {
+            off_centre: 1.0,
+            roll_deg: 30.0,
+            ..level
+        };
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let (mut widest, mut steepest) = (0.0f64, 0.0f64);
+        for _ in 0..200 {
+            let aimed = look_at(&target, &level, &mut rng);
+            // Neither option asked: the camera is left as it was.
+            let same = reframe(aimed, &target, radius, &camera, &level, &mut rng);
+            assert!((same.to_homogeneous() - aimed.to_homogeneous()).abs().max() < 1e-12);
+            let turned = reframe(aimed, &target, radius, &camera, &moved, &mut rng);
+            // Turned about the camera's centre: the distance to the target is kept.
+            let seen = turned * target;
+            assert!((seen.coords.norm() - (aimed * target).coords.norm()).abs() < 1e-9);
+            // The bounding sphere stays inside the image.
+            let pixel = camera.project(&seen).unwrap();
+            let margin = camera.fx * radius / seen.z;
+            assert!(pixel.x > margin * 0.9 && pixel.x < f64::from(camera.width) - margin * 0.9);
+            assert!(pixel.y > margin * 0.9 && pixel.y < f64::from(camera.height) - margin * 0.9);
+            widest = widest.max((pixel.x - camera.cx).abs());
+            // The turn is the shortest one that moves the line of sight onto the target after a
+            // roll about the line of sight of at most 30°.
+            let turn = turned.rotation * aimed.rotation.inverse();
+            let sight = turn * Vector3::z();
+            let aim = UnitQuaternion::rotation_between(&Vector3::z(), &sight).unwrap();
+            let roll = aim.inverse() * turn;
+            let axis = roll.axis().map_or(Vector3::z(), |a| a.into_inner());
+            assert!(roll.angle() < 1e-9 || axis.z.abs() > 1.0 - 1e-9, "{axis}");
+            steepest = steepest.max(roll.angle().to_degrees());
+        }
+        assert!(widest > 100.0, "the centre moved at most {widest} px");
+        assert!((25.0..=30.0).contains(&steepest), "roll {steepest}°");
     }
 }

@@ -168,6 +168,12 @@ fn split_options(objects: &[SynthObject], options: &SynthOptions) -> Value {
     if options.occluders > 0 {
         value["occluders"] = json!(options.occluders);
     }
+    if options.view.off_centre > 0.0 {
+        value["off_centre"] = json!(options.view.off_centre);
+    }
+    if options.view.roll_deg > 0.0 {
+        value["roll_deg"] = json!(options.view.roll_deg);
+    }
     as_recorded(value)
 }
 

@@ -7,9 +7,9 @@ use tch::Tensor;
 
 use super::model::check_translation_sets;
 use super::{CropGeometry, TranslationPdf, TranslationPredictor, TranslationTrainer};
+use crate::ModelError;
 use crate::fit::{FitOptions, FitTarget, check_image_stack, select_images};
 use crate::train::StepReport;
-use crate::{ModelError, RefineOptions};
 
 /// The cell size (mm) the validation LLH refines the octree to.
 const VALIDATION_CELL_MM: f64 = 2.0;
@@ -79,17 +79,18 @@ impl LabelledTranslations {
 }
 
 /// The mean over crops of the mean over each crop's labels of `ln p(t | I)` (per mm³), the
-/// normaliser from the octree refined to cells of at most 2 mm
-/// ([`RefineOptions::translation`]); `−ln |V|` for a uniform density over the volume `V`.
+/// normaliser from the octree of each crop's volume refined to cells of at most 2 mm
+/// ([`TranslationPredictor::refine_options`]); `−ln |V|` for a uniform density over that
+/// volume `V`.
 pub fn translation_validation_llh(
     model: &TranslationPdf,
     data: &LabelledTranslations,
 ) -> Result<f64, ModelError> {
     let predictor = TranslationPredictor::new(model);
-    let options = RefineOptions::translation(&model.space().volume, VALIDATION_CELL_MM);
     let mut total = 0.0;
     for image in 0..data.len() {
         let (crop, geometry, sets) = data.batch(&[image]);
+        let options = predictor.refine_options(&geometry[0], VALIDATION_CELL_MM);
         let distribution = predictor.hierarchical(&crop, &geometry[0], &options)?;
         let densities = predictor.log_densities(&crop, &geometry[0], &sets[0], &distribution)?;
         total += densities.iter().sum::<f64>() / densities.len() as f64;

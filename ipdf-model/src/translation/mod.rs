@@ -21,7 +21,7 @@ mod volume;
 
 pub use fit::{LabelledTranslations, translation_validation_llh};
 pub use geometry::{CameraIntrinsics, CropBox, CropGeometry, translations_to_tensor};
-pub use model::{TranslationConfig, TranslationPdf, TranslationSpace};
+pub use model::{CROP_VOLUME_SPAN, TranslationConfig, TranslationPdf, TranslationSpace};
 pub use predict::{TranslationArgmax, TranslationArgmaxOptions, TranslationPredictor};
 pub use train::{TranslationTrainOptions, TranslationTrainer};
 pub use volume::{MAX_OCTREE_LEVEL, WorkingVolume};

@@ -66,7 +66,39 @@ impl TranslationSpace {
     pub fn reference_depth(&self) -> f64 {
         0.5 * (self.volume.min[2] + self.volume.max[2])
     }
+
+    /// Where the density of one crop is evaluated: the box around the rays through a square
+    /// [`CROP_VOLUME_SPAN`] times the crop's side about its centre, between the volume's
+    /// nearest and farthest depth. An object's centre projects into its crop, so its density
+    /// lives there; the box stays as narrow as the object wherever the crop lies in the image,
+    /// where the whole volume spans every position the training objects took (a metre across
+    /// when they appeared anywhere in the image), and cells fine enough to resolve the density
+    /// at the first levels of the octree.
+    pub fn crop_volume(&self, geometry: &CropGeometry) -> WorkingVolume {
+        let (k, c) = (&geometry.intrinsics, &geometry.crop);
+        let half = 0.5 * CROP_VOLUME_SPAN * c.side;
+        // x/z and y/z of the square's edges (pixel centres at integers: see `crop_factors`).
+        let slopes = |centre: f64, principal: f64, focal: f64| {
+            [
+                (centre - half - principal - 0.5) / focal,
+                (centre + half - principal - 0.5) / focal,
+            ]
+        };
+        let (near, far) = (self.volume.min[2], self.volume.max[2]);
+        let span =
+            |[low, high]: [f64; 2]| [(low * near).min(low * far), (high * near).max(high * far)];
+        let [x0, x1] = span(slopes(c.centre_x, k.cx, k.fx));
+        let [y0, y1] = span(slopes(c.centre_y, k.cy, k.fy));
+        WorkingVolume {
+            min: [x0, y0, near],
+            max: [x1, y1, far],
+        }
+    }
 }
+
+/// The side of the square, in crop sides, whose rays bound a crop's volume
+/// ([`TranslationSpace::crop_volume`]).
+pub const CROP_VOLUME_SPAN: f64 = 2.0;
 
 /// Checks translation label sets against their crops: one non-empty set of finite translations
 /// in front of the camera per crop, and valid crop geometry.

@@ -1,11 +1,11 @@
 //! Inference with a translation model: `F` at any translations, the distribution over the
-//! working volume's octree refined where the mass is, `ln p(t | I)`, and the most likely
-//! translation by gradient ascent.
+//! octree of the crop's volume ([`super::TranslationSpace::crop_volume`]) refined where the
+//! mass is, `ln p(t | I)`, and the most likely translation by gradient ascent.
 use nalgebra::Vector3;
 use tch::{Kind, Tensor};
 
 use super::geometry::translations_to_tensor;
-use super::{CropGeometry, TranslationPdf};
+use super::{CropGeometry, TranslationPdf, WorkingVolume};
 use crate::ModelError;
 use crate::refine::{CellMasses, RefineOptions, refine_on};
 
@@ -15,8 +15,9 @@ const CHUNK: usize = 4_096;
 /// Options of [`TranslationPredictor::argmax`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TranslationArgmaxOptions {
-    /// The hierarchical evaluation whose densest cells start the ascent.
-    pub refine: RefineOptions,
+    /// The cell size (mm) of the hierarchical evaluation whose densest cells start the ascent
+    /// ([`TranslationPredictor::refine_options`]).
+    pub cell_size: f64,
     /// Number of starting cells (the densest ones).
     pub starts: usize,
     /// Gradient-ascent steps per start.
@@ -25,12 +26,11 @@ pub struct TranslationArgmaxOptions {
     pub step_size: f64,
 }
 
-impl TranslationArgmaxOptions {
-    /// [`RefineOptions::translation`] with cells of at most 2 mm, 4 starts, 50 steps of at most
-    /// 1 mm.
-    pub fn for_model(model: &TranslationPdf) -> Self {
+impl Default for TranslationArgmaxOptions {
+    /// Cells of at most 2 mm, 4 starts, 50 steps of at most 1 mm.
+    fn default() -> Self {
         Self {
-            refine: RefineOptions::translation(&model.space().volume, 2.0),
+            cell_size: 2.0,
             starts: 4,
             steps: 50,
             step_size: 1.0,
@@ -81,6 +81,16 @@ impl<'m> TranslationPredictor<'m> {
         Self { model }
     }
 
+    /// The box a crop's density is evaluated in ([`super::TranslationSpace::crop_volume`]).
+    pub fn volume(&self, geometry: &CropGeometry) -> WorkingVolume {
+        self.model.space().crop_volume(geometry)
+    }
+
+    /// [`RefineOptions::translation`] on a crop's volume: cells of at most `cell_size` mm.
+    pub fn refine_options(&self, geometry: &CropGeometry, cell_size: f64) -> RefineOptions {
+        RefineOptions::translation(&self.volume(geometry), cell_size)
+    }
+
     fn terms(&self, image: &Tensor, geometry: &CropGeometry) -> Result<CropTerms, ModelError> {
         let batch = if image.dim() == 3 {
             image.unsqueeze(0)
@@ -124,7 +134,8 @@ impl<'m> TranslationPredictor<'m> {
         self.scores_for(&terms, translations)
     }
 
-    /// The distribution over the working volume's octree (see [`refine_on`]); masses sum to 1,
+    /// The distribution over the octree of the crop's volume ([`Self::volume`], see
+    /// [`refine_on`]; [`Self::refine_options`] for a cell size); masses sum to 1,
     /// `log_normaliser` is `ln ∫_V exp F` with `t` in mm.
     pub fn hierarchical(
         &self,
@@ -133,15 +144,7 @@ impl<'m> TranslationPredictor<'m> {
         options: &RefineOptions,
     ) -> Result<CellMasses, ModelError> {
         let terms = self.terms(image, geometry)?;
-        self.hierarchical_for(&terms, options)
-    }
-
-    fn hierarchical_for(
-        &self,
-        terms: &CropTerms,
-        options: &RefineOptions,
-    ) -> Result<CellMasses, ModelError> {
-        let volume = self.model.space().volume;
+        let volume = self.volume(geometry);
         refine_on(
             &volume,
             |level, cells| {
@@ -149,7 +152,7 @@ impl<'m> TranslationPredictor<'m> {
                     .iter()
                     .map(|&index| volume.cell_centre(level, index))
                     .collect::<Result<Vec<_>, _>>()?;
-                self.scores_for(terms, &centres)
+                self.scores_for(&terms, &centres)
             },
             options,
         )
@@ -171,9 +174,14 @@ impl<'m> TranslationPredictor<'m> {
             .collect())
     }
 
-    /// The centres (mm) of the cells of `distribution` (of this model's volume).
-    pub fn cell_centres(&self, distribution: &CellMasses) -> Result<Vec<Vector3<f64>>, ModelError> {
-        let volume = self.model.space().volume;
+    /// The centres (mm) of the cells of `distribution`, the hierarchical distribution of a crop
+    /// cut with `geometry`.
+    pub fn cell_centres(
+        &self,
+        distribution: &CellMasses,
+        geometry: &CropGeometry,
+    ) -> Result<Vec<Vector3<f64>>, ModelError> {
+        let volume = self.volume(geometry);
         distribution
             .cells
             .iter()
@@ -190,12 +198,14 @@ impl<'m> TranslationPredictor<'m> {
         geometry: &CropGeometry,
         options: &TranslationArgmaxOptions,
     ) -> Result<TranslationArgmax, ModelError> {
-        let masses = self.hierarchical(image, geometry, &options.refine)?;
+        let refine = self.refine_options(geometry, options.cell_size);
+        let masses = self.hierarchical(image, geometry, &refine)?;
         self.argmax_from(image, geometry, &masses, options)
     }
 
     /// [`Self::argmax`] from the crop's hierarchical distribution `masses`, already evaluated
-    /// (with `options.refine`): the same result without evaluating it again.
+    /// (with [`Self::refine_options`] for `options.cell_size`): the same result without
+    /// evaluating it again.
     pub fn argmax_from(
         &self,
         image: &Tensor,
@@ -213,7 +223,7 @@ impl<'m> TranslationPredictor<'m> {
             ));
         }
         let terms = self.terms(image, geometry)?;
-        let volume = self.model.space().volume;
+        let volume = self.volume(geometry);
         let starts = masses
             .densest_in(&volume, options.starts)
             .into_iter()

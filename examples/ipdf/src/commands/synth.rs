@@ -71,6 +71,13 @@ pub struct SynthArgs {
     /// Nearest and farthest camera distance (metres).
     #[arg(long, num_args = 2, value_names = ["NEAR", "FAR"], default_values_t = [0.5, 1.0])]
     pub distance: Vec<f64>,
+    /// Where the object appears: 0 in the middle of the image (the camera looks at it), 1
+    /// anywhere it stays inside the image, as in real frames.
+    #[arg(long, default_value_t = 0.0)]
+    pub off_centre: f64,
+    /// Roll the camera about its line of sight by up to this many degrees either way.
+    #[arg(long, default_value_t = 0.0)]
+    pub roll: f64,
 }
 
 /// Runs `ipdf synth`; returns `{"dataset", "split", "frames", "rendered", "scenes",
@@ -83,6 +90,12 @@ pub fn run(args: &SynthArgs, seed: u64) -> Result<serde_json::Value> {
     let (near, far) = (args.distance[0], args.distance[1]);
     if !(near.is_finite() && near > 0.0 && far >= near && far.is_finite()) {
         bail!("--distance must be two distances with 0 < NEAR ≤ FAR, got {near} {far}");
+    }
+    if !(0.0..=1.0).contains(&args.off_centre) {
+        bail!("--off-centre must be in 0..=1, got {}", args.off_centre);
+    }
+    if !(0.0..=180.0).contains(&args.roll) {
+        bail!("--roll must be in 0..=180 degrees, got {}", args.roll);
     }
     let objects = if args.mesh.is_empty() {
         args.objects
@@ -112,6 +125,8 @@ pub fn run(args: &SynthArgs, seed: u64) -> Result<serde_json::Value> {
         view: ViewRange {
             elevation_deg: (low, high),
             distance: (near, far),
+            off_centre: args.off_centre,
+            roll_deg: args.roll,
             ..ViewRange::default()
         },
         distractors: args.distractors,
