@@ -298,6 +298,14 @@ fn bad_flags_and_missing_inputs_fail_with_one_line() {
         "--elevation",
     );
     assert_fails(
+        &["synth", "--out", s(dir.path()), "--off-centre", "1.5"],
+        "--off-centre",
+    );
+    assert_fails(
+        &["synth", "--out", s(dir.path()), "--roll", "200"],
+        "--roll",
+    );
+    assert_fails(
         &["synth", "--out", s(dir.path()), "--objects", "teapot"],
         "teapot",
     );

@@ -49,6 +49,8 @@ fn a_synth_rerun_with_other_options_is_refused_and_an_identical_one_resumes() {
         (args("2", &["--seed", "7"]), "seed"),
         (args("2", &["--distractors", "1"]), "distractors"),
         (args("2", &["--elevation", "20", "80"]), "elevation_deg"),
+        (args("2", &["--off-centre", "1"]), "off_centre"),
+        (args("2", &["--roll", "30"]), "roll_deg"),
     ] {
         assert_fails(&extra, option);
         assert_fails(&extra, "train/synth_options.json");
