@@ -232,10 +232,10 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(16))]
 
     #[test]
-    fn a_crops_volume_holds_every_translation_seen_in_the_crop_between_the_volumes_depths(
+    fn a_crops_volume_holds_every_translation_seen_in_the_crop_and_the_working_volume(
         cx in 200.0f64..440.0, cy in 150.0f64..330.0, centre_x in 0.0f64..640.0,
         centre_y in 0.0f64..480.0, side in 20.0f64..300.0, u in -1.0f64..1.0, v in -1.0f64..1.0,
-        depth in 0.0f64..1.0,
+        depth in 0.0f64..1.0, half_width in 100.0f64..900.0,
     ) {
         let geometry = CropGeometry {
             crop: ipdf_model::CropBox { centre_x, centre_y, side },
@@ -243,22 +243,37 @@ proptest! {
             width: 640,
             height: 480,
         };
-        let volume = WorkingVolume::new([-900.0, -700.0, 400.0], [900.0, 700.0, 1300.0]).unwrap();
+        let volume = WorkingVolume::new(
+            [-half_width, -0.8 * half_width, 400.0],
+            [half_width, 0.8 * half_width, 1300.0],
+        ).unwrap();
         let space = TranslationSpace { volume, crop_extent: 150.0 };
         let crop_volume = space.crop_volume(&geometry);
-        // A translation that projects into the crop square (pixel centres at integers).
+        prop_assert!(crop_volume.validate().is_ok());
+        // Inside the working volume, on every axis.
+        for axis in 0..3 {
+            prop_assert!(crop_volume.min[axis] >= volume.min[axis] && crop_volume.max[axis] <= volume.max[axis]);
+        }
+        prop_assert_eq!((crop_volume.min[2], crop_volume.max[2]), (400.0, 1300.0));
+        // A translation that projects into the crop square (pixel centres at integers) and lies
+        // in the working volume lies in the crop's volume.
         let z = 400.0 + 900.0 * depth;
         let (pu, pv) = (centre_x + 0.5 * side * u, centre_y + 0.5 * side * v);
         let t = Vector3::new((pu - cx - 0.5) / 600.0 * z, (pv - cy - 0.5) / 610.0 * z, z);
-        prop_assert!(crop_volume.contains(&t), "{t:?} outside {crop_volume:?}");
-        prop_assert_eq!((crop_volume.min[2], crop_volume.max[2]), (400.0, 1300.0));
-        // As wide as the span's square at the farthest depth, and wider only by how far its
-        // edges' rays move between the nearest and farthest depth: narrow wherever the crop is.
+        if volume.contains(&t) {
+            prop_assert!(crop_volume.contains(&t), "{t:?} outside {crop_volume:?}");
+        }
+        // No wider than the span's square at the farthest depth plus how far its edges' rays
+        // move between the nearest and farthest depth: narrow wherever the crop is.
         let half = 0.5 * ipdf_model::CROP_VOLUME_SPAN * side;
         let slope = ((centre_x - half - cx - 0.5).abs()).max((centre_x + half - cx - 0.5).abs()) / 600.0;
         let width = 2.0 * half * 1300.0 / 600.0;
         let extent = crop_volume.extent().x;
-        prop_assert!(extent >= width - 1e-9 && extent <= width + slope * 900.0 + 1e-9, "{extent} vs {width}");
+        prop_assert!(extent <= (width + slope * 900.0 + 1e-9).max(2.0 * half_width), "{extent} vs {width}");
+        // As wide as that square wherever the working volume reaches that far.
+        if width + 1e-9 < 2.0 * half_width && crop_volume.max[0] < half_width && crop_volume.min[0] > -half_width {
+            prop_assert!(extent >= width - 1e-9, "{extent} vs {width}");
+        }
     }
 
     #[test]

@@ -67,13 +67,14 @@ impl TranslationSpace {
         0.5 * (self.volume.min[2] + self.volume.max[2])
     }
 
-    /// Where the density of one crop is evaluated: the box around the rays through a square
-    /// [`CROP_VOLUME_SPAN`] times the crop's side about its centre, between the volume's
-    /// nearest and farthest depth. An object's centre projects into its crop, so its density
-    /// lives there; the box stays as narrow as the object wherever the crop lies in the image,
-    /// where the whole volume spans every position the training objects took (a metre across
-    /// when they appeared anywhere in the image), and cells fine enough to resolve the density
-    /// at the first levels of the octree.
+    /// Where the density of one crop is evaluated: the part of the working volume around the
+    /// rays through a square [`CROP_VOLUME_SPAN`] times the crop's side about its centre. An
+    /// object's centre projects into its crop, so its density lives there; the box stays as
+    /// narrow as the object wherever the crop lies in the image, where the whole volume spans
+    /// every position the training objects took (a metre across when they appeared anywhere in
+    /// the image), and its cells resolve the density from the first levels of the octree. It
+    /// never leaves the working volume, where the model was trained; along an axis where the
+    /// rays miss it (a crop where no training object was), the volume's whole extent is kept.
     pub fn crop_volume(&self, geometry: &CropGeometry) -> WorkingVolume {
         let (k, c) = (&geometry.intrinsics, &geometry.crop);
         let half = 0.5 * CROP_VOLUME_SPAN * c.side;
@@ -85,10 +86,14 @@ impl TranslationSpace {
             ]
         };
         let (near, far) = (self.volume.min[2], self.volume.max[2]);
-        let span =
-            |[low, high]: [f64; 2]| [(low * near).min(low * far), (high * near).max(high * far)];
-        let [x0, x1] = span(slopes(c.centre_x, k.cx, k.fx));
-        let [y0, y1] = span(slopes(c.centre_y, k.cy, k.fy));
+        let within = |[low, high]: [f64; 2], axis: usize| {
+            let (min, max) = (self.volume.min[axis], self.volume.max[axis]);
+            let from = (low * near).min(low * far).max(min);
+            let to = (high * near).max(high * far).min(max);
+            if to > from { [from, to] } else { [min, max] }
+        };
+        let [x0, x1] = within(slopes(c.centre_x, k.cx, k.fx), 0);
+        let [y0, y1] = within(slopes(c.centre_y, k.cy, k.fy), 1);
         WorkingVolume {
             min: [x0, y0, near],
             max: [x1, y1, far],
