@@ -98,7 +98,19 @@ fn labels_recover_the_symmetry_sets_of_a_can_and_a_box() {
             assert_eq!(bins.len(), 3, "{entry}");
             assert_eq!(count("instances"), entry["instances"].as_u64().unwrap());
             assert_eq!(count("labelled"), entry["labelled"].as_u64().unwrap());
+            assert_eq!(count("labels"), entry["labels"].as_u64().unwrap());
+            assert_eq!(
+                count("off_instances"),
+                entry["off_instances"].as_u64().unwrap()
+            );
             let maad = entry["label_maad_deg"].as_f64().unwrap();
+            // The bins' label MAADs, weighted by their labels, make the object's.
+            let weighted = bins
+                .iter()
+                .map(|b| b["label_maad_deg"].as_f64().unwrap() * b["labels"].as_f64().unwrap())
+                .sum::<f64>()
+                / entry["labels"].as_f64().unwrap();
+            assert!((weighted - maad).abs() < 1e-9, "{weighted} vs {maad}");
             let coverage = entry["coverage"].as_f64().unwrap();
             let labelled = entry["labelled"].as_u64().unwrap();
             println!("{name} {object}: {entry}");

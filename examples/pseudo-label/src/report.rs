@@ -22,7 +22,7 @@ pub const COVERAGE_ANGLE_DEG: f64 = 5.0;
 /// visible, 45–70% and from 70%.
 pub const VISIBILITY_BINS: [f64; 3] = [0.0, 0.45, 0.7];
 
-/// Instances of one bin of visible fraction, and how many of them are labelled.
+/// Instances of one bin of visible fraction, how many of them are labelled, and how well.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct VisibilityBin {
     /// The bin's lower end: instances with `visib_fract` from here to the next bin's.
@@ -31,6 +31,16 @@ pub struct VisibilityBin {
     pub instances: usize,
     /// Of those, instances with at least one label.
     pub labelled: usize,
+    /// Their labels.
+    #[serde(default)]
+    pub labels: usize,
+    /// Mean over those labels of the angle to the nearest ground-truth symmetric rotation
+    /// (degrees; 0 without labels).
+    #[serde(default)]
+    pub label_maad_deg: f64,
+    /// Labelled instances of the bin with a label farther than 5° from every symmetric pose.
+    #[serde(default)]
+    pub off_instances: usize,
 }
 
 /// The scores of one object's labels.
@@ -72,7 +82,8 @@ pub struct ObjectLabelScores {
 
 /// The scores of a split's labels: `labels.json` of `ipdf label --report`, `{"variant",
 /// "objects": {name: {"obj_id", "instances", "labelled", "labelled_fraction", "off_instances",
-/// "by_visibility": [{"min_visible", "instances", "labelled"}, …], "scores", "rejected_scores",
+/// "by_visibility": [{"min_visible", "instances", "labelled", "labels", "label_maad_deg",
+/// "off_instances"}, …], "scores", "rejected_scores",
 /// "labels", "label_maad_deg", "coverage"}}}`.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct LabelReport {
@@ -100,10 +111,12 @@ impl LabelReport {
              of a label; off = labelled instances with a label farther than \
              {COVERAGE_ANGLE_DEG}° from every symmetric pose; scores = median (5th–95th \
              percentile) of the best score, in the sensor's expected errors; by visibility = \
-             labelled of the instances under 45%, 45–70% and from 70% visible.\n\n\
+             labelled of the instances under 45%, 45–70% and from 70% visible, and their \
+             label MAAD and off instances.\n\n\
              | object | instances | labelled | by visibility | labels | label MAAD (°) | \
-             coverage | off | scores, labelled | scores, unlabelled |\n\
-             |---|---|---|---|---|---|---|---|---|---|\n",
+             coverage | off | scores, labelled | scores, unlabelled | label MAAD (°), off, by \
+             visibility |\n\
+             |---|---|---|---|---|---|---|---|---|---|---|\n",
             self.variant
         );
         let mut rows: Vec<_> = self.objects.iter().collect();
@@ -113,18 +126,21 @@ impl LabelReport {
                 Some(p) => format!("{:.2} ({:.2}–{:.2})", p[2], p[0], p[4]),
                 None => "–".into(),
             };
-            let by_visibility = if s.by_visibility.is_empty() {
-                "–".to_string()
-            } else {
-                let bins: Vec<String> = s
-                    .by_visibility
-                    .iter()
-                    .map(|b| format!("{}/{}", b.labelled, b.instances))
-                    .collect();
-                bins.join(" · ")
+            let bins = |cell: &dyn Fn(&VisibilityBin) -> String| {
+                if s.by_visibility.is_empty() {
+                    "–".to_string()
+                } else {
+                    let cells: Vec<String> = s.by_visibility.iter().map(cell).collect();
+                    cells.join(" · ")
+                }
             };
+            let by_visibility = bins(&|b| format!("{}/{}", b.labelled, b.instances));
+            let accuracy_by_visibility = bins(&|b| match b.labels {
+                0 => "–".into(),
+                _ => format!("{:.2}, {}", b.label_maad_deg, b.off_instances),
+            });
             text += &format!(
-                "| {} | {} | {} ({:.1}%) | {} | {} | {:.2} | {:.1}% | {} | {} | {} |\n",
+                "| {} | {} | {} ({:.1}%) | {} | {} | {:.2} | {:.1}% | {} | {} | {} | {} |\n",
                 name,
                 s.instances,
                 s.labelled,
@@ -136,6 +152,7 @@ impl LabelReport {
                 s.off_instances,
                 spread(&s.scores),
                 spread(&s.rejected_scores),
+                accuracy_by_visibility,
             );
         }
         text
@@ -194,7 +211,13 @@ pub fn report(
                     .as_ref()
                     .and_then(|info| info.get(im_id)?.get(k))
                     .map(|i| i.visib_fract);
-                if let Some(visible) = visible {
+                let bin = visible.map(|visible| {
+                    VISIBILITY_BINS
+                        .iter()
+                        .rposition(|&m| visible >= m)
+                        .unwrap_or(0)
+                });
+                if let Some(bin) = bin {
                     let bins = &mut entry.0.by_visibility;
                     if bins.is_empty() {
                         bins.extend(VISIBILITY_BINS.map(|min_visible| VisibilityBin {
@@ -202,10 +225,6 @@ pub fn report(
                             ..Default::default()
                         }));
                     }
-                    let bin = VISIBILITY_BINS
-                        .iter()
-                        .rposition(|&m| visible >= m)
-                        .unwrap_or(0);
                     bins[bin].instances += 1;
                     bins[bin].labelled += usize::from(!instance.labels.is_empty());
                 }
@@ -235,6 +254,15 @@ pub fn report(
                     entry.1 += error;
                     entry.0.errors_deg.push(error);
                     entry.0.labels += 1;
+                    if let Some(bin) = bin {
+                        // The sum for now: divided by the count once all are in.
+                        let bin = &mut entry.0.by_visibility[bin];
+                        bin.labels += 1;
+                        bin.label_maad_deg += error;
+                    }
+                }
+                if let Some(bin) = bin {
+                    entry.0.by_visibility[bin].off_instances += usize::from(off);
                 }
                 let classes = distances[0].len();
                 let covered = (0..classes)
@@ -253,6 +281,9 @@ pub fn report(
         .into_iter()
         .map(|(obj_id, (mut scores, maad_sum, coverage_sum))| {
             scores.label_maad_deg = maad_sum / scores.labels.max(1) as f64;
+            for bin in &mut scores.by_visibility {
+                bin.label_maad_deg /= bin.labels.max(1) as f64;
+            }
             scores.coverage = coverage_sum / scores.labelled.max(1) as f64;
             scores.labelled_fraction = scores.labelled as f64 / scores.instances.max(1) as f64;
             if let Some((accepted, rejected)) = best_scores.remove(&obj_id) {

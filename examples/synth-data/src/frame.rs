@@ -83,6 +83,18 @@ impl Restable {
         Ok(Self { poses, cumulative })
     }
 
+    /// A shape that stands upright: its `−z` face on the table, its origin `half_height` above.
+    fn upright(half_height: f64) -> Self {
+        Self {
+            poses: vec![RestingPose {
+                normal: -Vector3::z_axis(),
+                offset: half_height,
+                probability: 1.0,
+            }],
+            cumulative: vec![1.0],
+        }
+    }
+
     /// A table-from-model pose: a stable face drawn by its probability, a random yaw, the
     /// origin above `(x, y)`.
     fn place<R: Rng>(&self, rng: &mut R, x: f64, y: f64) -> Isometry3<f64> {
@@ -96,10 +108,12 @@ impl Restable {
     }
 }
 
-/// Renders frames of one object: the scene (object, table, distractors) is built once.
+/// Renders frames of one object: the scene (object, table, distractors, occluding panel) is
+/// built once.
 pub struct FrameRenderer {
     scene: Scene,
     object: Restable,
+    /// The distractor shapes, then the upright panel only occluders use.
     distractors: Vec<Restable>,
     /// The object's bounding-box corners (model frame).
     corners: [Point3<f64>; 8],
@@ -131,7 +145,8 @@ pub struct FrameStyle {
     pub material: Material,
     /// Distractor objects on the table around it.
     pub distractors: usize,
-    /// Distractor objects on the table between it and the camera, hiding part of it.
+    /// Objects on the table between it and the camera, hiding part of it: distractor shapes or
+    /// an upright panel its own size.
     pub occluders: usize,
     /// What the depth camera reads, or clean depth.
     pub sensor: Option<DepthSensor>,
@@ -150,6 +165,18 @@ impl FrameRenderer {
         meshes.extend(distractor_meshes.iter().cloned());
         let (low, high) = mesh.bounds();
         let (low, high) = (low.cast::<f64>(), high.cast::<f64>());
+        let radius = (high - low).norm() / 2.0;
+        // A panel as wide as the object's bounding radius and 1.6 times as tall, standing:
+        // the small distractors cannot hide more than their 10 cm of a tall object.
+        let panel = Primitive::Cuboid {
+            extents: [radius, 0.02, 1.6 * radius],
+        };
+        meshes.push(panel.mesh()?);
+        let mut distractors = distractor_meshes
+            .iter()
+            .map(Restable::new)
+            .collect::<Result<Vec<_>, _>>()?;
+        distractors.push(Restable::upright(0.8 * radius));
         let corners = std::array::from_fn(|i| {
             Point3::new(
                 if i & 1 == 0 { low.x } else { high.x },
@@ -160,13 +187,10 @@ impl FrameRenderer {
         Ok(Self {
             scene: Scene::new(&meshes),
             object: Restable::new(mesh)?,
-            distractors: distractor_meshes
-                .iter()
-                .map(Restable::new)
-                .collect::<Result<_, _>>()?,
+            distractors,
             corners,
             centre: nalgebra::center(&low, &high),
-            radius: (high - low).norm() / 2.0,
+            radius,
         })
     }
 
@@ -191,7 +215,13 @@ impl FrameRenderer {
         let eye = camera_from_world.inverse() * Point3::origin();
         let towards_camera = (eye.y - y).atan2(eye.x - x);
         for k in 0..style.distractors + style.occluders {
-            let kind = rng.random_range(0..self.distractors.len());
+            // Distractors are the small shapes; occluders those or the panel.
+            let kinds = if k < style.distractors {
+                DISTRACTORS.len()
+            } else {
+                self.distractors.len()
+            };
+            let kind = rng.random_range(0..kinds);
             let (angle, reach) = if k < style.distractors {
                 let angle = rng.random::<f64>() * std::f64::consts::TAU;
                 (angle, 0.1 + 0.08 * rng.random::<f64>())
@@ -200,8 +230,15 @@ impl FrameRenderer {
                 let spread = (rng.random::<f64>() * 2.0 - 1.0) * 20f64.to_radians();
                 (towards_camera + spread, 0.07 + 0.03 * rng.random::<f64>())
             };
-            let placed =
-                self.distractors[kind].place(rng, x + reach * angle.cos(), y + reach * angle.sin());
+            let (px, py) = (x + reach * angle.cos(), y + reach * angle.sin());
+            let placed = if kind == DISTRACTORS.len() {
+                // The panel faces the camera, give or take 30°.
+                let turn = (rng.random::<f64>() * 2.0 - 1.0) * 30f64.to_radians();
+                let yaw = towards_camera - std::f64::consts::FRAC_PI_2 + turn;
+                self.distractors[kind].poses[0].on_table(yaw, px, py)
+            } else {
+                self.distractors[kind].place(rng, px, py)
+            };
             instances.push(Instance::new(2 + kind, camera_from_world * placed));
             materials.push(Material::Uniform(std::array::from_fn(|_| {
                 0.2 + 0.7 * rng.random::<f32>()
@@ -369,28 +406,37 @@ mod tests {
     use super::*;
     use rand::SeedableRng;
 
+    /// The visible fractions of 24 frames of `object` with these distractors and occluders.
+    fn visible_fractions(
+        object: crate::ObjectKind,
+        distractors: usize,
+        occluders: usize,
+    ) -> Vec<f64> {
+        let object = crate::SynthObject::built_in(object).unwrap();
+        let renderer = FrameRenderer::new(&object.mesh).unwrap();
+        let camera = crate::SynthOptions::t_less_camera().camera;
+        let style = FrameStyle {
+            material: Material::Uniform(object.colour),
+            distractors,
+            occluders,
+            sensor: None,
+            mask_errors: None,
+        };
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        (0..24)
+            .map(|_| {
+                let frame = renderer
+                    .render(&camera, &ViewRange::default(), &style, &mut rng)
+                    .unwrap();
+                frame.info.visib_fract
+            })
+            .collect()
+    }
+
     #[test]
     fn occluders_stand_between_the_object_and_the_camera() {
-        let bowl = crate::SynthObject::built_in(crate::ObjectKind::Bowl).unwrap();
-        let renderer = FrameRenderer::new(&bowl.mesh).unwrap();
-        let camera = crate::SynthOptions::t_less_camera().camera;
-        let visible = |distractors: usize, occluders: usize| -> Vec<f64> {
-            let style = FrameStyle {
-                material: Material::Uniform(bowl.colour),
-                distractors,
-                occluders,
-                sensor: None,
-                mask_errors: None,
-            };
-            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
-            (0..24)
-                .map(|_| {
-                    let frame = renderer
-                        .render(&camera, &ViewRange::default(), &style, &mut rng)
-                        .unwrap();
-                    frame.info.visib_fract
-                })
-                .collect()
+        let visible = |distractors, occluders| {
+            visible_fractions(crate::ObjectKind::Bowl, distractors, occluders)
         };
         let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
         // Two distractors anywhere around it hide less than two in front of it.
@@ -403,6 +449,9 @@ mod tests {
             in_front.iter().filter(|&&v| v < 0.7).count() >= 3,
             "{in_front:?}"
         );
+        // The panel hides even the tall box (21 cm) to under 45% at times.
+        let tall = visible_fractions(crate::ObjectKind::Box, 0, 2);
+        assert!(tall.iter().filter(|&&v| v < 0.45).count() >= 2, "{tall:?}");
     }
 
     #[test]

@@ -48,8 +48,9 @@ pub struct SynthArgs {
     /// Distractor objects per frame (occluders, not annotated).
     #[arg(long, default_value_t = 0)]
     pub distractors: usize,
-    /// Distractor objects per frame placed between the object and the camera (within 20° of
-    /// the line of sight, 7–10 cm in front of it), hiding part of it.
+    /// Objects per frame placed between the object and the camera (within 20° of the line of
+    /// sight, 7–10 cm in front of it), hiding part of it: a distractor shape or, one time in
+    /// four, an upright panel as wide as the object's bounding radius and 1.6 times as tall.
     #[arg(long, default_value_t = 0)]
     pub occluders: usize,
     /// Write what this depth sensor reads instead of clean depth: axial and lateral noise,
