@@ -372,6 +372,16 @@ fn bad_translation_input_gets_typed_errors() {
             )
             .is_err()
     );
+    for cell_size in [0.0, -1.0, f64::NAN] {
+        let options = TranslationArgmaxOptions {
+            cell_size,
+            ..TranslationArgmaxOptions::default()
+        };
+        let err = predictor
+            .argmax(&data.images.get(0), &data.geometry[0], &options)
+            .unwrap_err();
+        assert!(matches!(err, ModelError::InvalidOption { .. }), "{err}");
+    }
 }
 
 #[test]

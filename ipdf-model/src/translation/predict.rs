@@ -26,6 +26,25 @@ pub struct TranslationArgmaxOptions {
     pub step_size: f64,
 }
 
+impl TranslationArgmaxOptions {
+    /// Checks for a finite cell size > 0, at least one start and a finite step ≥ 0.
+    pub fn validate(&self) -> Result<(), ModelError> {
+        let cell = self.cell_size.is_finite() && self.cell_size > 0.0;
+        let step = self.step_size.is_finite() && self.step_size >= 0.0;
+        if !cell || self.starts == 0 || !step {
+            return Err(ModelError::option(
+                "starts",
+                format!(
+                    "cells of {} mm, {} starts, step size {} mm: need cells > 0, ≥ 1 start and \
+                     a finite step ≥ 0",
+                    self.cell_size, self.starts, self.step_size
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
 impl Default for TranslationArgmaxOptions {
     /// Cells of at most 2 mm, 4 starts, 50 steps of at most 1 mm.
     fn default() -> Self {
@@ -198,6 +217,7 @@ impl<'m> TranslationPredictor<'m> {
         geometry: &CropGeometry,
         options: &TranslationArgmaxOptions,
     ) -> Result<TranslationArgmax, ModelError> {
+        options.validate()?;
         let refine = self.refine_options(geometry, options.cell_size);
         let masses = self.hierarchical(image, geometry, &refine)?;
         self.argmax_from(image, geometry, &masses, options)
@@ -213,15 +233,7 @@ impl<'m> TranslationPredictor<'m> {
         masses: &CellMasses,
         options: &TranslationArgmaxOptions,
     ) -> Result<TranslationArgmax, ModelError> {
-        if options.starts == 0 || !(options.step_size >= 0.0 && options.step_size.is_finite()) {
-            return Err(ModelError::option(
-                "starts",
-                format!(
-                    "{} starts, step size {} mm: need ≥ 1 and a finite step ≥ 0",
-                    options.starts, options.step_size
-                ),
-            ));
-        }
+        options.validate()?;
         let terms = self.terms(image, geometry)?;
         let volume = self.volume(geometry);
         let starts = masses
