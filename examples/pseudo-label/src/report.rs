@@ -245,6 +245,7 @@ pub fn report(
                     .map(|label| group.class_distances(&truth.pose.rotation, &label.pose.rotation))
                     .collect();
                 let mut off = false;
+                let first = entry.0.errors_deg.len();
                 for per_class in &distances {
                     let error = per_class
                         .iter()
@@ -254,15 +255,16 @@ pub fn report(
                     entry.1 += error;
                     entry.0.errors_deg.push(error);
                     entry.0.labels += 1;
-                    if let Some(bin) = bin {
-                        // The sum for now: divided by the count once all are in.
-                        let bin = &mut entry.0.by_visibility[bin];
-                        bin.labels += 1;
-                        bin.label_maad_deg += error;
-                    }
                 }
                 if let Some(bin) = bin {
-                    entry.0.by_visibility[bin].off_instances += usize::from(off);
+                    let errors = &entry.0.errors_deg[first..];
+                    let bin = &mut entry.0.by_visibility[bin];
+                    bin.labels += errors.len();
+                    // The sum for now: divided by the count once all are in.
+                    for error in errors {
+                        bin.label_maad_deg += error;
+                    }
+                    bin.off_instances += usize::from(off);
                 }
                 let classes = distances[0].len();
                 let covered = (0..classes)

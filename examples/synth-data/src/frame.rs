@@ -83,18 +83,6 @@ impl Restable {
         Ok(Self { poses, cumulative })
     }
 
-    /// A shape that stands upright: its `−z` face on the table, its origin `half_height` above.
-    fn upright(half_height: f64) -> Self {
-        Self {
-            poses: vec![RestingPose {
-                normal: -Vector3::z_axis(),
-                offset: half_height,
-                probability: 1.0,
-            }],
-            cumulative: vec![1.0],
-        }
-    }
-
     /// A table-from-model pose: a stable face drawn by its probability, a random yaw, the
     /// origin above `(x, y)`.
     fn place<R: Rng>(&self, rng: &mut R, x: f64, y: f64) -> Isometry3<f64> {
@@ -113,8 +101,9 @@ impl Restable {
 pub struct FrameRenderer {
     scene: Scene,
     object: Restable,
-    /// The distractor shapes, then the upright panel only occluders use.
     distractors: Vec<Restable>,
+    /// The panel only occluders use (the scene's last mesh), standing on its `−z` face.
+    panel: RestingPose,
     /// The object's bounding-box corners (model frame).
     corners: [Point3<f64>; 8],
     centre: Point3<f64>,
@@ -172,11 +161,6 @@ impl FrameRenderer {
             extents: [radius, 0.02, 1.6 * radius],
         };
         meshes.push(panel.mesh()?);
-        let mut distractors = distractor_meshes
-            .iter()
-            .map(Restable::new)
-            .collect::<Result<Vec<_>, _>>()?;
-        distractors.push(Restable::upright(0.8 * radius));
         let corners = std::array::from_fn(|i| {
             Point3::new(
                 if i & 1 == 0 { low.x } else { high.x },
@@ -187,7 +171,15 @@ impl FrameRenderer {
         Ok(Self {
             scene: Scene::new(&meshes),
             object: Restable::new(mesh)?,
-            distractors,
+            distractors: distractor_meshes
+                .iter()
+                .map(Restable::new)
+                .collect::<Result<_, _>>()?,
+            panel: RestingPose {
+                normal: -Vector3::z_axis(),
+                offset: 0.8 * radius,
+                probability: 1.0,
+            },
             corners,
             centre: nalgebra::center(&low, &high),
             radius,
@@ -216,11 +208,7 @@ impl FrameRenderer {
         let towards_camera = (eye.y - y).atan2(eye.x - x);
         for k in 0..style.distractors + style.occluders {
             // Distractors are the small shapes; occluders those or the panel.
-            let kinds = if k < style.distractors {
-                DISTRACTORS.len()
-            } else {
-                self.distractors.len()
-            };
+            let kinds = DISTRACTORS.len() + usize::from(k >= style.distractors);
             let kind = rng.random_range(0..kinds);
             let (angle, reach) = if k < style.distractors {
                 let angle = rng.random::<f64>() * std::f64::consts::TAU;
@@ -235,7 +223,7 @@ impl FrameRenderer {
                 // The panel faces the camera, give or take 30°.
                 let turn = (rng.random::<f64>() * 2.0 - 1.0) * 30f64.to_radians();
                 let yaw = towards_camera - std::f64::consts::FRAC_PI_2 + turn;
-                self.distractors[kind].poses[0].on_table(yaw, px, py)
+                self.panel.on_table(yaw, px, py)
             } else {
                 self.distractors[kind].place(rng, px, py)
             };
