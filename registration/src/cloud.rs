@@ -1,6 +1,6 @@
 //! The point-cloud type: positions in metres, optional unit normals.
 
-use nalgebra::{Isometry3, Matrix3, Point3, SymmetricEigen, Vector3};
+use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, SymmetricEigen, UnitQuaternion, Vector3};
 
 use crate::RegistrationError;
 
@@ -100,6 +100,22 @@ impl PointCloud {
         centroid(&self.points)
     }
 
+    /// The frame of the cloud's principal axes: origin at the centroid, columns of the rotation
+    /// the covariance's eigenvectors (right-handed, in nalgebra's eigenvalue order, which is not
+    /// sorted). `None` for an empty cloud.
+    pub fn principal_frame(&self) -> Option<Isometry3<f64>> {
+        let (mean, covariance) = covariance(&self.points)?;
+        let mut axes = SymmetricEigen::new(covariance).eigenvectors;
+        if axes.determinant() < 0.0 {
+            axes.column_mut(2).neg_mut();
+        }
+        let rotation = Rotation3::from_matrix_unchecked(axes);
+        Some(Isometry3::from_parts(
+            mean.coords.into(),
+            UnitQuaternion::from_rotation_matrix(&rotation),
+        ))
+    }
+
     /// Fails with [`RegistrationError::Degenerate`] when all points lie (to within a relative
     /// 1e-3 of the cloud's extent) on a line or a plane: no rigid pose is unique then.
     pub fn check_not_degenerate(&self, cloud: &'static str) -> Result<(), RegistrationError> {
@@ -137,17 +153,23 @@ pub(crate) fn centroid(points: &[Point3<f32>]) -> Option<Point3<f64>> {
     Some(Point3::from(sum / points.len() as f64))
 }
 
-/// Eigenvalues of the covariance of `points`, ascending (f64).
-fn principal_spread(points: &[Point3<f32>]) -> [f64; 3] {
-    let Some(mean) = centroid(points) else {
-        return [0.0; 3];
-    };
+/// The centroid of `points` and their covariance (f64). `None` when empty.
+fn covariance(points: &[Point3<f32>]) -> Option<(Point3<f64>, Matrix3<f64>)> {
+    let mean = centroid(points)?;
     let mut covariance = Matrix3::zeros();
     for p in points {
         let d = p.coords.cast::<f64>() - mean.coords;
         covariance += d * d.transpose();
     }
-    let mut values: Vec<f64> = SymmetricEigen::new(covariance / points.len() as f64)
+    Some((mean, covariance / points.len() as f64))
+}
+
+/// Eigenvalues of the covariance of `points`, ascending (f64).
+fn principal_spread(points: &[Point3<f32>]) -> [f64; 3] {
+    let Some((_, covariance)) = covariance(points) else {
+        return [0.0; 3];
+    };
+    let mut values: Vec<f64> = SymmetricEigen::new(covariance)
         .eigenvalues
         .iter()
         .copied()
@@ -159,6 +181,43 @@ fn principal_spread(points: &[Point3<f32>]) -> [f64; 3] {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        /// The principal frame sits at the centroid, is a proper rotation, and diagonalises the
+        /// covariance: its axes are the cloud's principal axes.
+        #[test]
+        fn principal_frame_diagonalises_the_covariance(
+            axis in (-1.0f64..1.0, -1.0f64..1.0, -1.0f64..1.0),
+            angle in 0.0f64..std::f64::consts::PI,
+            offset in (-1.0f32..1.0, -1.0f32..1.0, -1.0f32..1.0),
+            seed in 0u32..1000,
+        ) {
+            let turn = UnitQuaternion::from_scaled_axis(Vector3::new(axis.0, axis.1, axis.2) * angle);
+            // A cloud stretched 3:2:1 along the turned axes.
+            let points: Vec<Point3<f32>> = (0..300u32)
+                .map(|i| {
+                    let h = |k: u32| ((i.wrapping_mul(2_654_435_761) ^ seed.wrapping_mul(k)) % 1000) as f64 / 1000.0 - 0.5;
+                    let local = Vector3::new(3.0 * h(7), 2.0 * h(13), h(29));
+                    let p = turn * local;
+                    Point3::new(p.x as f32 + offset.0, p.y as f32 + offset.1, p.z as f32 + offset.2)
+                })
+                .collect();
+            let cloud = PointCloud::new(points.clone()).unwrap();
+            let frame = cloud.principal_frame().unwrap();
+            let centroid = cloud.centroid().unwrap();
+            prop_assert!((frame.translation.vector - centroid.coords).norm() < 1e-9);
+            let rotation = frame.rotation.to_rotation_matrix().into_inner();
+            prop_assert!((rotation.determinant() - 1.0).abs() < 1e-9);
+            let (_, c) = covariance(&points).unwrap();
+            let diagonal = rotation.transpose() * c * rotation;
+            let scale = c.norm();
+            for (i, j) in [(0, 1), (0, 2), (1, 2)] {
+                prop_assert!(diagonal[(i, j)].abs() < 1e-9 * scale.max(1.0), "{diagonal}");
+            }
+        }
+    }
 
     #[test]
     fn rejects_non_finite_points_and_normals() {

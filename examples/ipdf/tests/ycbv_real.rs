@@ -148,34 +148,54 @@ fn label_and_score(root: &Path) -> Vec<Scored> {
 }
 
 #[test]
-fn real_frames_are_all_labelled_and_their_best_labels_show_the_true_surface() {
+fn real_frames_are_all_labelled_and_their_labels_show_the_true_surface() {
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path().join("ycbv");
     copy_dir(&fixture(), &root);
     let scored = label_and_score(&root);
     for instance in &scored {
-        eprintln!("{instance:?}");
+        eprintln!(
+            "scene {}, object {}: {} labels, best first:",
+            instance.scene,
+            instance.obj_id,
+            instance.errors.len()
+        );
+        for e in &instance.errors {
+            eprintln!("    {:.1}°, {:.1} mm, VSD {:.3}", e.angle, e.offset, e.vsd);
+        }
     }
     assert_eq!(scored.len(), 11);
     // The can and the sugar box of scene 1 run out of the image at its lower edge: how far they
-    // reach, the depth cannot say (the sugar box's best label is turned and 22 mm off).
+    // reach, the depth cannot say (the sugar box's labels are all 22 mm off).
     let truncated: Vec<_> = scored
         .iter()
         .filter(|s| s.truncated)
         .map(|s| (s.scene, s.obj_id))
         .collect();
     assert_eq!(truncated, [(1, 1), (1, 3)]);
+    // Every label is a true pose or one the view cannot tell from it (a mug whose handle is
+    // hidden, a foam brick turned over).
     for instance in scored.iter().filter(|s| !s.truncated) {
-        let best = instance.errors[0];
-        assert!(
-            best.near_a_symmetric_pose() || best.same_visible_surface(),
-            "{instance:?}"
-        );
+        for label in &instance.errors {
+            assert!(
+                label.near_a_symmetric_pose() || label.same_visible_surface(),
+                "{instance:?}"
+            );
+        }
     }
-    // Where the view leaves no ambiguity, the best label is a true pose.
-    let strict = scored
+    // Where the view leaves no ambiguity, the best label is a true pose; where it does, the
+    // set holds one more often than not.
+    let best = scored
         .iter()
         .filter(|s| s.errors[0].near_a_symmetric_pose())
         .count();
-    assert!(strict >= 7, "{strict} of 11 within 5° and 10 mm");
+    assert!(best >= 7, "{best} of 11 best labels within 5° and 10 mm");
+    let any = scored
+        .iter()
+        .filter(|s| s.errors.iter().any(Errors::near_a_symmetric_pose))
+        .count();
+    assert!(
+        any >= 8,
+        "{any} of 11 label sets hold a pose within 5° and 10 mm"
+    );
 }

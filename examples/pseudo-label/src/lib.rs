@@ -1,8 +1,8 @@
 //! Pseudo ground-truth pose labels from RGB-D images and a mesh, with no annotation
 //! (`ipdf label`), with no libtorch: for every object instance of every image, the masked depth becomes a point
 //! cloud that is registered to the model (random P0 → FPFH + FGR → ICP) and validated by
-//! rendering the model at the pose found and comparing depths. The best of several trials is
-//! one label; the instance's pseudo-GT set holds up to `labels` of them, spread over the
+//! rendering the model at the pose found and comparing depths. The best of several trials,
+//! checked against the poses it is most often mistaken for, is one label; the instance's pseudo-GT set holds up to `labels` of them, spread over the
 //! object's symmetries (see [`symmetries`] for why and how), poses scoring worse than a
 //! threshold dropped and near-duplicates merged.
 //!

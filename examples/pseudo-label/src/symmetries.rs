@@ -8,7 +8,13 @@
 //! centroid, keeping the motions whose surface residual is
 //! tiny. This uses the mesh alone (never a ground-truth pose) and works for any mesh, whatever
 //! its symmetries (none, discrete, continuous or approximate).
-use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
+//!
+//! [`principal_turns`] are the poses an object is most often *mistaken* for: on real frames a
+//! box registered 90° or 180° off about one of its axes, or a scan that is nearly but not quite
+//! symmetric, explains the depth almost as well as the truth, and the first trial that scores
+//! under `good_score` may be one of them. Re-seeding from each turn and keeping what scores
+//! best makes the first label independent of which basin the trials fell into.
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 use registration::{IcpOptions, PreparedCloud, downsample_voxel, refine_icp};
 use so3_grid::{Grid, geodesic_distance};
@@ -16,6 +22,10 @@ use so3_grid::{Grid, geodesic_distance};
 /// Two symmetries closer than this (radians, 5°) are the same: ICP may stop a little short of
 /// an exact symmetry where a face slides within its own plane.
 const SAME_SYMMETRY: f64 = 5.0f64 * std::f64::consts::PI / 180.0;
+
+/// A motion whose surface residual ([`surface_residual`]) is under this many voxels maps the
+/// model onto itself.
+pub const SYMMETRIC_RESIDUAL: f64 = 0.08;
 
 /// The mean point-to-plane distance (metres) of the points `pose · source` to `target`, each point's
 /// distance capped at `cap` and points with no target point within `2 · cap` counted as `cap`:
@@ -52,7 +62,8 @@ pub fn surface_residual(
 
 /// The rigid motions `S` (model frame, metres) with `S · model ≈ model`, identity first, the
 /// others by increasing surface residual, no two within 5°. `voxel` is the model cloud's voxel
-/// size: a motion is kept when the surface residual after ICP is below `0.08 · voxel`.
+/// size: a motion is kept when the surface residual after ICP is below
+/// [`SYMMETRIC_RESIDUAL`] · `voxel`.
 pub fn discover_symmetries(model: &PreparedCloud, voxel: f32) -> Vec<Isometry3<f64>> {
     let Some(centroid) = model.cloud.centroid() else {
         return vec![Isometry3::identity()];
@@ -87,7 +98,7 @@ pub fn discover_symmetries(model: &PreparedCloud, voxel: f32) -> Vec<Isometry3<f
             };
             let pose = refine(&start, &coarse).and_then(|p| refine(&p, &fine))?;
             let residual = surface_residual(model.cloud.points(), model, &pose, voxel);
-            (residual < 0.08 * f64::from(voxel)).then_some((pose, residual))
+            (residual < SYMMETRIC_RESIDUAL * f64::from(voxel)).then_some((pose, residual))
         })
         .flatten()
         .collect();
@@ -103,6 +114,53 @@ pub fn discover_symmetries(model: &PreparedCloud, voxel: f32) -> Vec<Isometry3<f
         }
     }
     symmetries
+}
+
+/// The 23 turns (model frame, metres) about the model's centroid that map its principal axes
+/// onto themselves (the rotation group of a cube in the frame of the model's inertia: quarter
+/// and half turns about the axes, third turns about the diagonals), without those that are symmetries themselves (surface residual under
+/// [`SYMMETRIC_RESIDUAL`] · `voxel`, as in [`discover_symmetries`]) or within 5° of one of
+/// `symmetries`: re-seeding from the symmetries reaches those. Empty for an empty cloud.
+pub fn principal_turns(
+    model: &PreparedCloud,
+    voxel: f32,
+    symmetries: &[Isometry3<f64>],
+) -> Vec<Isometry3<f64>> {
+    let Some(frame) = model.cloud.principal_frame() else {
+        return Vec::new();
+    };
+    cube_rotations()
+        .into_iter()
+        .skip(1)
+        .map(|turn| frame * Isometry3::from_parts(Translation3::identity(), turn) * frame.inverse())
+        .filter(|turn| {
+            symmetries
+                .iter()
+                .all(|s| geodesic_distance(&s.rotation, &turn.rotation) > SAME_SYMMETRY)
+                && surface_residual(model.cloud.points(), model, turn, voxel)
+                    >= SYMMETRIC_RESIDUAL * f64::from(voxel)
+        })
+        .collect()
+}
+
+/// The 24 rotations that map the coordinate axes onto themselves, identity first.
+fn cube_rotations() -> Vec<UnitQuaternion<f64>> {
+    let quarter = |axis: Vector3<f64>, k: u32| {
+        UnitQuaternion::from_scaled_axis(axis * f64::from(k) * std::f64::consts::FRAC_PI_2)
+    };
+    let mut rotations: Vec<UnitQuaternion<f64>> = Vec::with_capacity(24);
+    for a in 0..4 {
+        for b in 0..4 {
+            for c in 0..4 {
+                let rotation =
+                    quarter(Vector3::x(), a) * quarter(Vector3::y(), b) * quarter(Vector3::z(), c);
+                if rotations.iter().all(|r| r.angle_to(&rotation) > 0.1) {
+                    rotations.push(rotation);
+                }
+            }
+        }
+    }
+    rotations
 }
 
 /// Up to `count` of `rotations` spread as evenly as possible: the first, then repeatedly the
@@ -138,6 +196,7 @@ mod tests {
     use super::*;
     use nalgebra::Vector3;
     use proptest::prelude::*;
+    use registration::PointCloud;
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(32))]
@@ -160,6 +219,68 @@ mod tests {
             for r in &rotations {
                 let reach = chosen.iter().map(|&c| geodesic_distance(r, &rotations[c])).fold(f64::INFINITY, f64::min);
                 prop_assert!(reach <= gap + 1e-12);
+            }
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(32))]
+        /// The turns of a cloud with no symmetry are 23 distinct rotations about its centroid
+        /// (they keep it in place) that map its principal axes onto themselves, and those
+        /// within 5° of a known symmetry are left out.
+        #[test]
+        fn principal_turns_map_the_principal_axes_onto_themselves(
+            seed in 0u64..1000,
+            known in 0usize..4,
+        ) {
+            use rand::SeedableRng;
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            // Points filling a 3:2:1 box, far apart for the voxel: no turn maps them onto
+            // themselves.
+            let points: Vec<Point3<f32>> = (0..200)
+                .map(|_| Point3::new(rng.random_range(-0.3..0.3), rng.random_range(-0.2..0.2), rng.random_range(-0.1..0.1)))
+                .collect();
+            let normals = vec![Vector3::z(); points.len()];
+            let cloud = PointCloud::new(points).unwrap().with_normals(normals).unwrap();
+            let voxel = 0.001;
+            let options = registration::PrepareOptions {
+                keep_normals: true,
+                ..registration::PrepareOptions::for_voxel(voxel)
+            };
+            let model = registration::prepare_cloud(&cloud, &options).unwrap();
+            let all = principal_turns(&model, voxel, &[Isometry3::identity()]);
+            prop_assert_eq!(all.len(), 23);
+            let symmetries: Vec<_> = std::iter::once(Isometry3::identity())
+                .chain(all[..known].iter().copied())
+                .collect();
+            let turns = principal_turns(&model, voxel, &symmetries);
+            prop_assert_eq!(&turns[..], &all[known..]);
+            let centroid = model.cloud.centroid().unwrap();
+            let axes = model.cloud.principal_frame().unwrap().rotation.to_rotation_matrix();
+            for (i, turn) in turns.iter().enumerate() {
+                prop_assert!((turn * centroid - centroid).norm() < 1e-9);
+                prop_assert!(turn.rotation.angle() > 1.0);
+                for axis in axes.matrix().column_iter() {
+                    let image = turn.rotation * axis;
+                    let nearest = axes.matrix().column_iter().map(|a| a.dot(&image).abs()).fold(0.0, f64::max);
+                    prop_assert!((nearest - 1.0).abs() < 1e-9);
+                }
+                for other in &turns[i + 1..] {
+                    prop_assert!(geodesic_distance(&other.rotation, &turn.rotation) > 1.0);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_cube_group_has_24_rotations() {
+        let rotations = cube_rotations();
+        assert_eq!(rotations.len(), 24);
+        assert_eq!(rotations[0].angle(), 0.0);
+        // Closed under composition.
+        for a in &rotations {
+            for b in &rotations {
+                assert!(rotations.iter().any(|r| r.angle_to(&(a * b)) < 1e-9));
             }
         }
     }
