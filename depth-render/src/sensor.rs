@@ -5,7 +5,7 @@
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::PinholeCamera;
 use crate::pixel_grid::{four_neighbours, morph};
@@ -73,7 +73,7 @@ pub struct DepthSensor {
 }
 
 /// The sensors [`DepthSensor`] has presets of, by name.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum SensorPreset {
     /// [`DepthSensor::kinect`].

@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::Result;
+use depth_render::SensorPreset;
 use ipdf::pipeline::{Plan, Preset, run_pipeline};
 
 use super::choice::choice;
@@ -29,6 +30,13 @@ pub struct PipelineArgs {
     /// Override the preset's frames per object of the textured dataset.
     #[arg(long)]
     pub texture_frames: Option<usize>,
+    /// The depth camera whose readings the datasets' depth imitates and the labelling expects,
+    /// instead of the preset's (a Kinect v1).
+    #[arg(long, value_parser = choice::<SensorPreset>(), conflicts_with = "clean_depth")]
+    pub sensor: Option<SensorPreset>,
+    /// Clean rendered depth instead of a sensor's readings (as before `--sensor` existed).
+    #[arg(long)]
+    pub clean_depth: bool,
     /// Override the preset's epochs (of the translation models too, unless
     /// --translation-epochs is given).
     #[arg(long)]
@@ -48,6 +56,11 @@ pub fn run(args: &PipelineArgs, seed: u64) -> Result<serde_json::Value> {
         frames: args.frames.unwrap_or(preset.frames),
         val_frames: args.val_frames.unwrap_or(preset.val_frames),
         texture_frames: args.texture_frames.unwrap_or(preset.texture_frames),
+        sensor: if args.clean_depth {
+            None
+        } else {
+            args.sensor.or(preset.sensor)
+        },
         epochs: args.epochs.unwrap_or(preset.epochs),
         translation_epochs: args
             .translation_epochs

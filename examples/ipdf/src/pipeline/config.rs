@@ -4,6 +4,7 @@
 use std::path::Path;
 
 use bop_dataset::{read_json, write_json};
+use depth_render::SensorPreset;
 use ipdf_model::EncoderKind;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
@@ -42,6 +43,7 @@ impl Preset {
                 frames: 800,
                 val_frames: 50,
                 texture_frames: 20,
+                sensor: Some(SensorPreset::Kinect),
                 encoder: EncoderKind::SmallCnn,
                 input_size: 48,
                 head: vec![64, 64],
@@ -62,6 +64,7 @@ impl Preset {
                 frames: 6667,
                 val_frames: 500,
                 texture_frames: 6667,
+                sensor: Some(SensorPreset::Kinect),
                 encoder: EncoderKind::Resnet18,
                 input_size: 224,
                 head: vec![256, 256, 256, 256],
@@ -96,6 +99,10 @@ pub struct Plan {
     /// Frames per object of the textured dataset (labelled, not trained on).
     #[serde(rename = "texture_frames_per_object")]
     pub texture_frames: usize,
+    /// The depth camera whose readings the datasets' depth imitates and the labelling expects
+    /// (a Kinect v1 in both presets, as T-LESS's Primesense); `None`: clean rendered depth. The
+    /// colour images, masks and ground truth do not depend on it: only the pseudo labels do.
+    pub sensor: Option<SensorPreset>,
     /// The encoder of the Single / Analytical / Pseudo models.
     pub encoder: EncoderKind,
     /// Side of the square crops (pixels).
@@ -193,12 +200,13 @@ pub struct PipelineConfig {
 pub const CONFIG_FILE: &str = "pipeline_config.json";
 
 /// The keys of [`PipelineConfig`] set by command-line flags, and the flags.
-const FLAGS: [(&str, &str); 8] = [
+const FLAGS: [(&str, &str); 9] = [
     ("preset", "--preset"),
     ("seed", "--seed"),
     ("frames_per_object", "--frames"),
     ("val_frames_per_object", "--val-frames"),
     ("texture_frames_per_object", "--texture-frames"),
+    ("sensor", "--sensor or --clean-depth"),
     ("epochs", "--epochs"),
     ("translation_epochs", "--translation-epochs"),
     ("steps_per_epoch", "--steps-per-epoch"),

@@ -18,6 +18,7 @@ use std::time::Instant;
 use bop_dataset::{
     BopDataset, read_json_as, read_models_info, read_scene_gt, write_atomically, write_json,
 };
+use depth_render::SensorPreset;
 use ipdf_model::{ImplicitPdf, ModelConfig, TRAIN_LOG, TranslationPdf, default_device};
 use pseudo_label::{DatasetOptions, LabelOptions, LabelReport, Shard, label_dataset};
 use serde::{Deserialize, Serialize};
@@ -106,7 +107,7 @@ pub fn run_pipeline(out: &Path, plan: &Plan, seed: u64) -> Result<PipelineSummar
     synthesize_datasets(out, plan, seed)?;
     stage("synth", started);
     let started = Instant::now();
-    let labels = label_datasets(out, seed)?;
+    let labels = label_datasets(out, plan, seed)?;
     stage("label", started);
     let runs = model_runs(out, plan);
     let started = Instant::now();
@@ -144,7 +145,8 @@ fn data_dir(out: &Path, variant: Variant) -> PathBuf {
 }
 
 /// Stage 1, datasets: the uniform one to train and validate on, the textured one (training
-/// split) for the accuracy of its pseudo labels. Complete scenes are skipped.
+/// split) for the accuracy of its pseudo labels, with the plan's sensor's depth. Complete
+/// scenes are skipped.
 fn synthesize_datasets(out: &Path, plan: &Plan, seed: u64) -> Result<(), PipelineError> {
     let splits = [
         (Variant::Uniform, "train", plan.frames, seed),
@@ -160,6 +162,7 @@ fn synthesize_datasets(out: &Path, plan: &Plan, seed: u64) -> Result<(), Pipelin
             frames,
             variant,
             seed: split_seed,
+            sensor: plan.sensor.map(SensorPreset::sensor),
             ..SynthOptions::default()
         };
         let progress = bar((frames * objects.len()) as u64, "frames");
@@ -170,10 +173,12 @@ fn synthesize_datasets(out: &Path, plan: &Plan, seed: u64) -> Result<(), Pipelin
     Ok(())
 }
 
-/// Stage 2, pseudo labels of the training splits, scored against the ground truth
-/// (`labels_{variant}.json`, kept: a rerun reads them back).
+/// Stage 2, pseudo labels of the training splits, scores in the plan's sensor's expected errors
+/// (the Kinect's for clean depth), scored against the ground truth (`labels_{variant}.json`,
+/// kept: a rerun reads them back).
 fn label_datasets(
     out: &Path,
+    plan: &Plan,
     seed: u64,
 ) -> Result<BTreeMap<String, BTreeMap<String, LabelAccuracy>>, PipelineError> {
     let mut accuracy: BTreeMap<String, BTreeMap<String, LabelAccuracy>> = BTreeMap::new();
@@ -188,9 +193,11 @@ fn label_datasets(
                 shard: Shard::ALL,
                 relabel: false,
             };
+            let defaults = LabelOptions::default();
             let options = LabelOptions {
                 seed,
-                ..LabelOptions::default()
+                sensor: plan.sensor.unwrap_or(defaults.sensor),
+                ..defaults
             };
             let progress = bar(dataset.image_count("train")? as u64, "images");
             label_dataset(&dataset, &dataset_options, &options, &progress)?;
