@@ -118,9 +118,10 @@ pub fn discover_symmetries(model: &PreparedCloud, voxel: f32) -> Vec<Isometry3<f
 
 /// The 23 turns (model frame, metres) about the model's centroid that map its principal axes
 /// onto themselves (the rotation group of a cube in the frame of the model's inertia: quarter
-/// and half turns about the axes, third turns about the diagonals), without those that are symmetries themselves (surface residual under
-/// [`SYMMETRIC_RESIDUAL`] · `voxel`, as in [`discover_symmetries`]) or within 5° of one of
-/// `symmetries`: re-seeding from the symmetries reaches those. Empty for an empty cloud.
+/// and half turns about the axes, third turns about the diagonals), without those that are
+/// symmetries themselves (surface residual under [`SYMMETRIC_RESIDUAL`] · `voxel`, as in
+/// [`discover_symmetries`]) or within 5° of one of `symmetries`: re-seeding from the
+/// symmetries reaches those. Empty for an empty cloud.
 pub fn principal_turns(
     model: &PreparedCloud,
     voxel: f32,

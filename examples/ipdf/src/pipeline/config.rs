@@ -101,9 +101,9 @@ pub struct Plan {
     pub texture_frames: usize,
     /// The depth camera whose readings the datasets' depth imitates and the labelling expects
     /// (`paper`: a Kinect v1, as T-LESS's Primesense); `None` (`quick`): clean rendered depth,
-    /// which keeps `make demo` under 15 minutes on 2 cores (a Kinect's depth takes it to
-    /// 15 min 30 s: rendering the sensor's errors doubles the synth stage, labelling its
-    /// readings takes twice as long). The colour images, masks and ground truth do not depend
+    /// which keeps `make demo` under 15 minutes on 2 cores (a Kinect's depth took it to
+    /// 15 min 10 s from a fresh clone: rendering the sensor's errors doubles the synth stage,
+    /// and labelling its readings takes nearly twice as long). The colour images, masks and ground truth do not depend
     /// on it: only the pseudo labels do.
     pub sensor: Option<SensorPreset>,
     /// The encoder of the Single / Analytical / Pseudo models.
