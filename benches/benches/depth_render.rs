@@ -1,8 +1,11 @@
 //! depth-render hot paths: BVH build of a ~100k-triangle mesh, a 640×480 depth render of an
 //! object at 0.7 m, and a 100×100 window of it (render-and-compare's unit). The baseline is
 //! obvhs' own compressed-wide BVH traversal, one ray per pixel (its flagship CPU path).
+//!
+//! Group `sensor`: the sensor presets' readings of a 640×480 frame (an object on a table, every
+//! pixel rendered), against rendering that frame's depth in the same run.
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use depth_render::{Instance, PinholeCamera, Scene, TriangleMesh, Window, primitives};
+use depth_render::{DepthSensor, Instance, PinholeCamera, Scene, TriangleMesh, Window, primitives};
 use glam::Vec3A;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
 use obvhs::BvhBuildParams;
@@ -126,5 +129,39 @@ fn rendering(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, rendering);
+fn sensor(c: &mut Criterion) {
+    let mut group = c.benchmark_group("sensor");
+    let camera = PinholeCamera::new(1075.65, 1073.90, 320.0, 240.0, 640, 480).unwrap();
+    let meshes = [
+        primitives::sphere(0.1, 5).unwrap(),
+        primitives::plane(1.2, 1.2).unwrap(),
+    ];
+    let scene = Scene::new(&meshes);
+    // The camera 0.8 m from the table, looking down at 40° from the vertical.
+    let tilt = UnitQuaternion::from_euler_angles(-0.7, 0.0, 0.0);
+    let table = Isometry3::from_parts(Translation3::new(0.0, 0.0, 0.8), tilt);
+    let ball = table * Translation3::new(0.0, 0.0, 0.1);
+    let instances = [Instance::new(0, ball), Instance::new(1, table)];
+    let window = Window::full(&camera);
+    let depth = scene.render(&camera, &instances, window).unwrap().depth;
+    group.throughput(Throughput::Elements(depth.len() as u64));
+    group.bench_function("640x480/render_baseline", |b| {
+        b.iter(|| {
+            scene
+                .render(&camera, black_box(&instances), window)
+                .unwrap()
+        })
+    });
+    for (name, preset) in [
+        ("kinect", DepthSensor::kinect()),
+        ("realsense", DepthSensor::realsense()),
+    ] {
+        group.bench_function(format!("640x480/{name}"), |b| {
+            b.iter(|| preset.apply(black_box(&depth), &camera, 7))
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, rendering, sensor);
 criterion_main!(benches);

@@ -1,5 +1,7 @@
 //! Neighbourhoods on row-major pixel grids, shared by the sensor model and the mask errors.
 
+use rayon::prelude::*;
+
 /// The indices of the 4-neighbours of pixel `i` that lie in a grid of `width` columns and `rows`
 /// rows.
 pub(crate) fn four_neighbours(i: usize, width: usize, rows: usize) -> impl Iterator<Item = usize> {
@@ -24,6 +26,7 @@ pub(crate) fn morph(mask: &[bool], width: usize, radius: usize, grow: bool) -> V
     let rows = mask.len() / width;
     let pass = |input: &[bool], horizontal: bool| -> Vec<bool> {
         (0..input.len())
+            .into_par_iter()
             .map(|i| {
                 let (u, v) = (i % width, i / width);
                 let (position, length) = if horizontal { (u, width) } else { (v, rows) };

@@ -164,6 +164,11 @@ fn covariance(points: &[Point3<f32>]) -> Option<(Point3<f64>, Matrix3<f64>)> {
     Some((mean, covariance / points.len() as f64))
 }
 
+/// The centroid of `points` and their RMS distance from it; `None` for no points.
+pub(crate) fn centre_and_radius(points: &[Point3<f32>]) -> Option<(Point3<f64>, f64)> {
+    covariance(points).map(|(mean, covariance)| (mean, covariance.trace().sqrt()))
+}
+
 /// Eigenvalues of the covariance of `points`, ascending (f64).
 fn principal_spread(points: &[Point3<f32>]) -> [f64; 3] {
     let Some((_, covariance)) = covariance(points) else {

@@ -5,6 +5,7 @@ use std::num::NonZeroUsize;
 use nalgebra::{Isometry3, Point3, Vector3};
 use rayon::prelude::*;
 
+use crate::cloud::centre_and_radius;
 use crate::error::positive_metres;
 use crate::neighbours::{Neighbour, PointIndex};
 use crate::twist::{NormalEquations, kabsch};
@@ -73,6 +74,14 @@ pub struct IcpOptions {
     pub relative_fitness: f64,
     /// …and the inlier RMSE by less than this (metres).
     pub relative_rmse: f64,
+    /// Point-to-plane: leave out of each update the directions the correspondences hardly
+    /// constrain, those whose eigenvalue in the normal equations is under this fraction of the
+    /// largest (the turn about the source's centroid measured by its sweep at the RMS radius,
+    /// so that turns and shifts compare). A cylinder's or a bowl's turn about its axis is such
+    /// a direction: noisy points turn the pose on and on, or back and forth as a few of them
+    /// change partner, and ICP never settles. 0 (off, a plain Cholesky solve) in Open3D's
+    /// criteria.
+    pub min_eigen_ratio: f64,
     /// Optional robust kernel.
     pub kernel: Option<RobustKernel>,
     /// Pair each source point with the nearest of its 8 nearest target points whose normal is
@@ -82,8 +91,8 @@ pub struct IcpOptions {
 }
 
 impl Default for IcpOptions {
-    /// Point-to-plane, 7.5 mm (1.5 voxels of 5 mm), 30 iterations, 1e-6 / 1e-6, no kernel, no
-    /// normal test.
+    /// Point-to-plane, 7.5 mm (1.5 voxels of 5 mm), 30 iterations, 1e-6 / 1e-6, every
+    /// direction solved, no kernel, no normal test.
     fn default() -> Self {
         Self {
             method: IcpMethod::PointToPlane,
@@ -91,6 +100,7 @@ impl Default for IcpOptions {
             max_iterations: 30,
             relative_fitness: 1e-6,
             relative_rmse: 1e-6,
+            min_eigen_ratio: 0.0,
             kernel: None,
             max_normal_angle: None,
         }
@@ -146,6 +156,13 @@ pub fn refine_icp(
             reason: "scale must be positive",
         });
     }
+    if !(0.0..1.0).contains(&options.min_eigen_ratio) {
+        return Err(RegistrationError::InvalidOption {
+            name: "min_eigen_ratio",
+            value: options.min_eigen_ratio,
+            reason: "must be at least 0 and below 1",
+        });
+    }
     let normal_test = match options.max_normal_angle {
         None => None,
         Some(angle) => {
@@ -192,6 +209,10 @@ pub fn refine_icp(
             needed: 3,
         });
     }
+    // The turn of a constrained solve is taken about the source's centroid.
+    let spread = (options.min_eigen_ratio > 0.0)
+        .then(|| centre_and_radius(source.points()))
+        .flatten();
     let mut iterations = 0;
     while iterations < options.max_iterations {
         let pairs = matches.iter().enumerate().filter_map(|(i, m)| {
@@ -227,7 +248,14 @@ pub fn refine_icp(
                         .map_or(1.0, |k| k.weight((moved - target).dot(&normal)));
                     equations.add_point_to_plane(&moved.coords, &target.coords, &normal, weight);
                 }
-                equations.solve()
+                match spread {
+                    Some((centre, radius)) => equations.solve_constrained(
+                        &(pose * centre),
+                        radius,
+                        options.min_eigen_ratio,
+                    ),
+                    None => equations.solve(),
+                }
             }
         };
         // Too few or degenerate correspondences to fix every degree of freedom: stay put.
@@ -414,6 +442,97 @@ mod tests {
             assert!(
                 found.fitness > 0.95 && found.inlier_rmse < 5e-4,
                 "{method:?}: {found:?}"
+            );
+        }
+    }
+
+    /// `count` points drawn uniformly on a closed cylinder (radius 35 mm, height 100 mm, axis
+    /// z, centred on the origin), with their normals.
+    fn cylinder(rng: &mut ChaCha8Rng, count: usize) -> (Vec<Point3<f32>>, Vec<Vector3<f32>>) {
+        let (radius, half_height) = (0.035f32, 0.05f32);
+        let side = 2.0 * half_height / (2.0 * half_height + radius);
+        (0..count)
+            .map(|_| {
+                let a = rng.random::<f32>() * std::f32::consts::TAU;
+                if rng.random::<f32>() < side {
+                    let z = (rng.random::<f32>() * 2.0 - 1.0) * half_height;
+                    let normal = Vector3::new(a.cos(), a.sin(), 0.0);
+                    (Point3::new(0.0, 0.0, z) + normal * radius, normal)
+                } else {
+                    let r = radius * rng.random::<f32>().sqrt();
+                    let cap = if rng.random::<bool>() { 1.0 } else { -1.0 };
+                    (
+                        Point3::new(r * a.cos(), r * a.sin(), cap * half_height),
+                        Vector3::new(0.0, 0.0, cap),
+                    )
+                }
+            })
+            .unzip()
+    }
+
+    #[test]
+    fn leaving_out_unconstrained_directions_stops_a_turn_about_a_symmetry_axis() {
+        // A cylinder's model points (~2 mm apart) and the noisy part of it seen from +x and above
+        // (σ = 1 mm along the normal, as a depth sensor's at 0.8 m): the correspondences cannot
+        // fix the turn about the axis.
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let (points, normals) = cylinder(&mut rng, 8000);
+        let target = PointCloud::new(points)
+            .unwrap()
+            .with_normals(normals)
+            .unwrap();
+        let (seen, seen_normals): (Vec<_>, Vec<_>) = {
+            let (points, normals) = cylinder(&mut rng, 3000);
+            points
+                .into_iter()
+                .zip(normals)
+                .filter(|(p, n)| n.x > 0.2 || n.z > 0.0 && p.x > 0.0)
+                .map(|(p, n)| (p + n * (rng.random::<f32>() - 0.5) * 0.0035, n))
+                .unzip()
+        };
+        let source = PointCloud::new(seen)
+            .unwrap()
+            .with_normals(seen_normals)
+            .unwrap();
+        let index = PointIndex::from_points(target.points());
+        let run = |min_eigen_ratio| {
+            let options = IcpOptions {
+                max_correspondence_distance: 0.006,
+                max_normal_angle: Some(1.0),
+                min_eigen_ratio,
+                ..IcpOptions::default()
+            };
+            refine_icp(&source, &target, &index, &Isometry3::identity(), &options).unwrap()
+        };
+        let (bouncing, stopped) = (run(0.0), run(1e-3));
+        // Started at the truth, the plain solve wanders about the axis for many iterations.
+        assert!(bouncing.iterations >= 15, "{bouncing:?}");
+        assert!(bouncing.pose.rotation.angle() > 0.05, "{bouncing:?}");
+        // Without that direction it settles at once, as good a fit: the axis and the centre
+        // where they were, the turn about the axis untouched.
+        assert!(stopped.iterations <= 3, "{stopped:?}");
+        let axis = stopped.pose.rotation * Vector3::z();
+        assert!(axis.angle(&Vector3::z()) < 5e-3, "{axis}");
+        let turn = stopped.pose.rotation * Vector3::x();
+        assert!(turn.angle(&Vector3::x()) < 5e-3, "{turn}");
+        assert!(stopped.pose.translation.vector.norm() < 3e-4, "{stopped:?}");
+        assert!((stopped.inlier_rmse - bouncing.inlier_rmse).abs() < 5e-5);
+        assert!((stopped.fitness - bouncing.fitness).abs() < 1e-2);
+        for bad in [1.0, -0.1, f64::NAN] {
+            let options = IcpOptions {
+                min_eigen_ratio: bad,
+                ..IcpOptions::default()
+            };
+            let refused = refine_icp(&source, &target, &index, &Isometry3::identity(), &options);
+            assert!(
+                matches!(
+                    refused,
+                    Err(RegistrationError::InvalidOption {
+                        name: "min_eigen_ratio",
+                        ..
+                    })
+                ),
+                "{refused:?}"
             );
         }
     }

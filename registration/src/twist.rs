@@ -3,7 +3,8 @@
 use std::ops::{AddAssign, SubAssign};
 
 use nalgebra::{
-    Isometry3, Matrix3, Matrix6, Point3, Translation3, UnitQuaternion, Vector3, Vector6,
+    Isometry3, Matrix3, Matrix6, Point3, SymmetricEigen, Translation3, UnitQuaternion, Vector3,
+    Vector6,
 };
 
 /// Normal equations JᵀWJ ξ = −JᵀWr for a left update `exp(ξ) · pose`, ξ = (ω, t): rotation
@@ -27,6 +28,47 @@ impl NormalEquations {
     fn add_row(&mut self, jacobian: Vector6<f64>, residual: f64, weight: f64) {
         self.jtj += jacobian * jacobian.transpose() * weight;
         self.jtr += jacobian * (residual * weight);
+    }
+
+    /// The Gauss–Newton update without the directions the residuals hardly constrain (Zhang,
+    /// Kaess & Singh 2016, "On degeneracy of optimization-based state estimation problems"):
+    /// the system is taken to a turn about `centre` and a shift, the turn in metres swept at
+    /// `radius`, and only its eigenvectors with an eigenvalue of at least `min_ratio` times the
+    /// largest are solved for. `None` when no direction is constrained or the result is not
+    /// finite.
+    pub(crate) fn solve_constrained(
+        &self,
+        centre: &Point3<f64>,
+        radius: f64,
+        min_ratio: f64,
+    ) -> Option<Isometry3<f64>> {
+        // ξ (about the origin) = M ξc (a turn about the centre): t = tc + c × ω.
+        let mut about_centre = Matrix6::identity();
+        about_centre
+            .fixed_view_mut::<3, 3>(3, 0)
+            .copy_from(&centre.coords.cross_matrix());
+        let mut scale = Matrix6::identity();
+        for axis in 0..3 {
+            scale[(axis, axis)] = 1.0 / radius.max(f64::MIN_POSITIVE);
+        }
+        let change = about_centre * scale;
+        let eigen = SymmetricEigen::new(change.transpose() * self.jtj * change);
+        let gradient = change.transpose() * self.jtr;
+        let largest = eigen.eigenvalues.max();
+        if !(largest.is_finite() && largest > 0.0) {
+            return None;
+        }
+        let mut solved = Vector6::zeros();
+        for (k, &value) in eigen.eigenvalues.iter().enumerate() {
+            if value >= min_ratio * largest && value > 0.0 {
+                let direction = eigen.eigenvectors.column(k);
+                solved -= direction * (direction.dot(&gradient) / value);
+            }
+        }
+        let step = change * solved;
+        step.iter()
+            .all(|v| v.is_finite())
+            .then(|| isometry_from_twist(&step))
     }
 
     /// Residual `moved − target` (3 rows), Jacobian [−[moved]×, I]. Accumulated in closed form:
@@ -175,6 +217,76 @@ mod tests {
                 pose = equations.solve().unwrap() * pose;
             }
             prop_assert!((pose.to_homogeneous() - closed_form.to_homogeneous()).amax() < 1e-9);
+        }
+    }
+
+    /// Point-to-plane rows of `cloud()` against itself moved by `truth`, each point's normal
+    /// along `normal(i)`.
+    fn planar_rows(
+        truth: &Isometry3<f64>,
+        normal: impl Fn(usize) -> Vector3<f64>,
+    ) -> NormalEquations {
+        let mut equations = NormalEquations::new();
+        for (i, s) in cloud().iter().enumerate() {
+            equations.add_point_to_plane(&s.coords, &(truth * s).coords, &normal(i), 1.0);
+        }
+        equations
+    }
+
+    proptest! {
+        /// Where every direction is constrained, turning about another centre and measuring
+        /// the turn at another radius changes nothing: the update is the plain solve's.
+        #[test]
+        fn a_constrained_solve_of_a_well_posed_system_is_the_plain_one(
+            centre in (-1.0f64..1.0, -1.0f64..1.0, -1.0f64..1.0),
+            radius in 0.01f64..1.0,
+            turn in (-0.05f64..0.05, -0.05f64..0.05, -0.05f64..0.05),
+            shift in (-0.02f64..0.02, -0.02f64..0.02, -0.02f64..0.02),
+        ) {
+            let truth = Isometry3::new(
+                Vector3::new(shift.0, shift.1, shift.2),
+                Vector3::new(turn.0, turn.1, turn.2),
+            );
+            let equations = planar_rows(&truth, |i| {
+                let t = i as f64;
+                Vector3::new((0.9 * t).sin(), (1.7 * t).cos(), 0.6).normalize()
+            });
+            let centre = Point3::new(centre.0, centre.1, centre.2);
+            let plain = equations.solve().unwrap();
+            let constrained = equations.solve_constrained(&centre, radius, 1e-9).unwrap();
+            prop_assert!(
+                (plain.to_homogeneous() - constrained.to_homogeneous()).amax() < 1e-9,
+                "{plain:?} {constrained:?}"
+            );
+        }
+
+        /// Against planes whose normals all lie across z, nothing fixes a shift along z: the
+        /// plain solve fails, the constrained one leaves that shift out and finds the rest.
+        #[test]
+        fn a_constrained_solve_leaves_out_what_nothing_fixes(
+            turn in (-0.05f64..0.05, -0.05f64..0.05, -0.05f64..0.05),
+            shift in (-0.02f64..0.02, -0.02f64..0.02, -0.02f64..0.02),
+        ) {
+            let truth = Isometry3::new(
+                Vector3::new(shift.0, shift.1, shift.2),
+                Vector3::new(turn.0, turn.1, turn.2),
+            );
+            let across_z = |i: usize| {
+                let a = 0.9 * i as f64;
+                Vector3::new(a.cos(), a.sin(), 0.0)
+            };
+            let equations = planar_rows(&truth, across_z);
+            prop_assert!(equations.solve().is_none());
+            let (centre, radius) = (Point3::new(0.0, 0.0, 0.01), 0.1);
+            // Iterated, it reaches the truth but for a shift along z.
+            let mut pose = equations.solve_constrained(&centre, radius, 1e-6).unwrap();
+            for _ in 0..10 {
+                let rows = planar_rows(&(truth * pose.inverse()), across_z);
+                pose = rows.solve_constrained(&(pose * centre), radius, 1e-6).unwrap() * pose;
+            }
+            let rest = truth * pose.inverse();
+            prop_assert!(rest.rotation.angle() < 1e-9, "{rest:?}");
+            prop_assert!(rest.translation.vector.xy().norm() < 1e-9, "{rest:?}");
         }
     }
 

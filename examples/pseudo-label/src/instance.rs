@@ -278,7 +278,9 @@ pub fn initial_pose(
 
 /// Stage 4: point-to-plane ICP of the observed points onto the model (every observed point
 /// has a true counterpart on the model, which is not so the other way round), from `pose`
-/// (model→camera), within 1.5 voxels and between points whose normals agree.
+/// (model→camera), within 1.5 voxels and between points whose normals agree. Directions the
+/// points hardly constrain (eigenvalue under [`MIN_EIGEN_RATIO`] of the largest) are left out
+/// of each update.
 pub fn refine_pose(
     model: &ObjectModel,
     view: &PreparedCloud,
@@ -287,6 +289,7 @@ pub fn refine_pose(
     let options = IcpOptions {
         max_correspondence_distance: 1.5 * model.voxel,
         max_normal_angle: Some(MAX_NORMAL_ANGLE),
+        min_eigen_ratio: MIN_EIGEN_RATIO,
         ..IcpOptions::default()
     };
     refine_icp(
@@ -299,6 +302,14 @@ pub fn refine_pose(
     .ok()
     .map(|alignment| alignment.pose.inverse())
 }
+
+/// The smallest eigenvalue, over the largest, of a direction [`refine_pose`] moves the pose
+/// along. Measured on the Kinect demo set: the weakest direction of the can's and the bowl's
+/// refinements, the turn about the axis, has a median of 5·10⁻⁴ (fixed only by the spacing of
+/// the model points); the box's, 2·10⁻². Left free, that turn went back and forth with the
+/// sensor's noise until the 30th iteration in one refinement of six; left out, labelling that
+/// set is 40% faster with the same label figures.
+const MIN_EIGEN_RATIO: f64 = 1e-3;
 
 /// Stage 5: the render-and-compare score of `pose` (in `options.sensor`'s expected errors,
 /// capped at `options.outlier_sigmas`), or infinity when nothing can be compared.
