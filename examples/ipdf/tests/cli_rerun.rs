@@ -131,14 +131,14 @@ fn a_pipeline_rerun_with_other_settings_is_refused() {
         serde_json::from_slice(&std::fs::read(out.join("pipeline_config.json")).unwrap()).unwrap();
     assert_eq!(config["frames_per_object"], 2);
     assert_eq!(config["epochs"], 1);
-    // The quick preset's depth is clean.
-    assert_eq!(config["sensor"], serde_json::Value::Null);
+    // The quick preset's depth is a Kinect's.
+    assert_eq!(config["sensor"], "kinect");
     assert_fails(&settings("5"), "frames_per_object (--frames)");
-    let mut sensed = settings("2");
-    sensed.extend(["--sensor", "kinect"]);
-    assert_fails(&sensed, "sensor (--sensor or --clean-depth)");
-    sensed.push("--clean-depth");
-    assert_fails(&sensed, "cannot be used with");
+    let mut clean = settings("2");
+    clean.push("--clean-depth");
+    assert_fails(&clean, "sensor (--sensor or --clean-depth)");
+    clean.extend(["--sensor", "kinect"]);
+    assert_fails(&clean, "cannot be used with");
     // Another sensor is recorded as asked.
     let other = dir.path().join("other");
     std::fs::create_dir_all(other.join("data")).unwrap();

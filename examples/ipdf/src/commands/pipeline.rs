@@ -31,7 +31,7 @@ pub struct PipelineArgs {
     #[arg(long)]
     pub texture_frames: Option<usize>,
     /// The depth camera whose readings the datasets' depth imitates and the labelling expects,
-    /// instead of the preset's (quick: clean rendered depth; paper: a Kinect v1).
+    /// instead of the preset's (both: a Kinect v1).
     #[arg(long, value_parser = choice::<SensorPreset>(), conflicts_with = "clean_depth")]
     pub sensor: Option<SensorPreset>,
     /// Clean rendered depth instead of a sensor's readings.

@@ -43,7 +43,7 @@ impl Preset {
                 frames: 800,
                 val_frames: 50,
                 texture_frames: 20,
-                sensor: None,
+                sensor: Some(SensorPreset::Kinect),
                 encoder: EncoderKind::SmallCnn,
                 input_size: 48,
                 head: vec![64, 64],
@@ -100,11 +100,9 @@ pub struct Plan {
     #[serde(rename = "texture_frames_per_object")]
     pub texture_frames: usize,
     /// The depth camera whose readings the datasets' depth imitates and the labelling expects
-    /// (`paper`: a Kinect v1, as T-LESS's Primesense); `None` (`quick`): clean rendered depth,
-    /// which keeps `make demo` under 15 minutes on 2 cores (a Kinect's depth took it to
-    /// 15 min 10 s from a fresh clone: rendering the sensor's errors doubles the synth stage,
-    /// and labelling its readings takes nearly twice as long). The colour images, masks and ground truth do not depend
-    /// on it: only the pseudo labels do.
+    /// (both presets: a Kinect v1, as T-LESS's Primesense); `None` (`--clean-depth`): clean
+    /// rendered depth. The colour images, masks and ground truth do not depend on it: only the
+    /// pseudo labels do.
     pub sensor: Option<SensorPreset>,
     /// The encoder of the Single / Analytical / Pseudo models.
     pub encoder: EncoderKind,
