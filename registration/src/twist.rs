@@ -47,10 +47,8 @@ impl NormalEquations {
         about_centre
             .fixed_view_mut::<3, 3>(3, 0)
             .copy_from(&centre.coords.cross_matrix());
-        let mut scale = Matrix6::identity();
-        for axis in 0..3 {
-            scale[(axis, axis)] = 1.0 / radius.max(f64::MIN_POSITIVE);
-        }
+        let turn = 1.0 / radius.max(f64::MIN_POSITIVE);
+        let scale = Matrix6::from_diagonal(&Vector6::new(turn, turn, turn, 1.0, 1.0, 1.0));
         let change = about_centre * scale;
         let eigen = SymmetricEigen::new(change.transpose() * self.jtj * change);
         let gradient = change.transpose() * self.jtr;
