@@ -52,6 +52,7 @@ impl Preset {
                 steps_per_epoch: 50,
                 batch_size: 16,
                 learning_rate: 4e-3,
+                translation_learning_rate: 2e-3,
                 query_level: 1,
                 translation_queries: 512,
                 eval_level: 5,
@@ -73,6 +74,7 @@ impl Preset {
                 steps_per_epoch: 200,
                 batch_size: 64,
                 learning_rate: 1e-4,
+                translation_learning_rate: 1e-4,
                 query_level: 2,
                 translation_queries: 4_096,
                 eval_level: 5,
@@ -119,8 +121,10 @@ pub struct Plan {
     pub steps_per_epoch: u64,
     /// Images per step.
     pub batch_size: usize,
-    /// Peak learning rate.
+    /// Peak learning rate of the rotation models.
     pub learning_rate: f64,
+    /// Peak learning rate of the translation models.
+    pub translation_learning_rate: f64,
     /// Grid level of the training queries.
     pub query_level: u8,
     /// Translations queried per image and step by the translation models (one beside each
@@ -166,6 +170,14 @@ impl Plan {
         match target {
             Target::Translation => self.translation_epochs,
             _ => self.epochs,
+        }
+    }
+
+    /// Peak learning rate of the models of `target`.
+    pub fn learning_rate_of(&self, target: Target) -> f64 {
+        match target {
+            Target::Translation => self.translation_learning_rate,
+            _ => self.learning_rate,
         }
     }
 

@@ -310,7 +310,7 @@ fn train_models(
             epochs: plan.epochs_of(target),
             steps_per_epoch: plan.steps_per_epoch,
             batch_size: plan.batch_size,
-            learning_rate: plan.learning_rate,
+            learning_rate: plan.learning_rate_of(target),
             occlusion: run.occlusion,
             query_level: plan.query_level,
             translation_queries: plan.translation_queries,
