@@ -106,6 +106,10 @@ pub struct FrameRenderer {
     panel: RestingPose,
     /// The object's bounding-box corners (model frame).
     corners: [Point3<f64>; 8],
+    /// The distractors' bounding-box corners (their model frames).
+    distractor_corners: Vec<[Point3<f64>; 8]>,
+    /// The panel's.
+    panel_corners: [Point3<f64>; 8],
     centre: Point3<f64>,
     /// Half the bounding box's diagonal (metres).
     radius: f64,
@@ -159,15 +163,10 @@ impl FrameRenderer {
         // the small distractors cannot hide more than their 10 cm of a tall object.
         let panel = Primitive::Cuboid {
             extents: [radius, 0.02, 1.6 * radius],
-        };
-        meshes.push(panel.mesh()?);
-        let corners = std::array::from_fn(|i| {
-            Point3::new(
-                if i & 1 == 0 { low.x } else { high.x },
-                if i & 2 == 0 { low.y } else { high.y },
-                if i & 4 == 0 { low.z } else { high.z },
-            )
-        });
+        }
+        .mesh()?;
+        let panel_corners = box_corners(&panel);
+        meshes.push(panel);
         Ok(Self {
             scene: Scene::new(&meshes),
             object: Restable::new(mesh)?,
@@ -180,7 +179,9 @@ impl FrameRenderer {
                 offset: 0.8 * radius,
                 probability: 1.0,
             },
-            corners,
+            corners: box_corners(mesh),
+            distractor_corners: distractor_meshes.iter().map(box_corners).collect(),
+            panel_corners,
             centre: nalgebra::center(&low, &high),
             radius,
         })
@@ -214,19 +215,31 @@ impl FrameRenderer {
                 let angle = rng.random::<f64>() * std::f64::consts::TAU;
                 (angle, 0.1 + 0.08 * rng.random::<f64>())
             } else {
-                // Within 20° of the line of sight, 7–10 cm in front of the object.
+                // Within 20° of the line of sight, 7–10 cm in front of the object's origin.
                 let spread = (rng.random::<f64>() * 2.0 - 1.0) * 20f64.to_radians();
                 (towards_camera + spread, 0.07 + 0.03 * rng.random::<f64>())
             };
-            let (px, py) = (x + reach * angle.cos(), y + reach * angle.sin());
-            let placed = if kind == DISTRACTORS.len() {
+            // Stood at the table's origin first, then moved out along `angle`.
+            let (standing, corners) = if kind == DISTRACTORS.len() {
                 // The panel faces the camera, give or take 30°.
                 let turn = (rng.random::<f64>() * 2.0 - 1.0) * 30f64.to_radians();
                 let yaw = towards_camera - std::f64::consts::FRAC_PI_2 + turn;
-                self.panel.on_table(yaw, px, py)
+                (self.panel.on_table(yaw, 0.0, 0.0), &self.panel_corners)
             } else {
-                self.distractors[kind].place(rng, px, py)
+                (
+                    self.distractors[kind].place(rng, 0.0, 0.0),
+                    &self.distractor_corners[kind],
+                )
             };
+            let reach = clear_reach(
+                reach,
+                angle,
+                (&world_from_object, &self.corners),
+                (&standing, corners),
+                (x, y),
+            );
+            let placed =
+                Translation3::new(x + reach * angle.cos(), y + reach * angle.sin(), 0.0) * standing;
             instances.push(Instance::new(2 + kind, camera_from_world * placed));
             materials.push(Material::Uniform(std::array::from_fn(|_| {
                 0.2 + 0.7 * rng.random::<f32>()
@@ -303,6 +316,48 @@ impl FrameRenderer {
             v1: clamp(high[1].ceil() + 1.0, camera.height),
         }
     }
+}
+
+/// The corners of `mesh`'s axis-aligned bounding box.
+fn box_corners(mesh: &TriangleMesh) -> [Point3<f64>; 8] {
+    let (low, high) = mesh.bounds();
+    let (low, high) = (low.cast::<f64>(), high.cast::<f64>());
+    std::array::from_fn(|i| {
+        Point3::new(
+            if i & 1 == 0 { low.x } else { high.x },
+            if i & 2 == 0 { low.y } else { high.y },
+            if i & 4 == 0 { low.z } else { high.z },
+        )
+    })
+}
+
+/// Gap (metres) kept between the bounding boxes of the object and of a thing placed beside it.
+const CLEARANCE: f64 = 0.005;
+
+/// How far from the object's origin `(x, y)` along the table direction `angle` a thing standing
+/// at the table's origin (`thing`: its table pose and bounding-box corners) is moved: `reach`,
+/// or farther where their bounding boxes, seen from above, would come within [`CLEARANCE`] of
+/// each other along that direction (a panel 7 cm in front of the centre of a box 21 cm long
+/// stood inside it).
+fn clear_reach(
+    reach: f64,
+    angle: f64,
+    object: (&Isometry3<f64>, &[Point3<f64>; 8]),
+    thing: (&Isometry3<f64>, &[Point3<f64>; 8]),
+    (x, y): (f64, f64),
+) -> f64 {
+    let (dx, dy) = (angle.cos(), angle.sin());
+    let support = |(pose, corners): (&Isometry3<f64>, &[Point3<f64>; 8]), sign: f64| {
+        corners
+            .iter()
+            .map(|c| {
+                let p = pose * c;
+                sign * (p.x * dx + p.y * dy)
+            })
+            .fold(f64::NEG_INFINITY, f64::max)
+    };
+    let object_reach = support(object, 1.0) - (x * dx + y * dy);
+    reach.max(object_reach + support(thing, -1.0) + CLEARANCE)
 }
 
 /// A camera-from-world pose looking at `target` from a random elevation, azimuth and
@@ -440,6 +495,61 @@ mod tests {
         // The panel hides even the tall box (21 cm) to under 45% at times.
         let tall = visible_fractions(crate::ObjectKind::Box, 0, 2);
         assert!(tall.iter().filter(|&&v| v < 0.45).count() >= 2, "{tall:?}");
+    }
+
+    /// Whether a point lies inside the box spanned by `corners` (`corners[0]` the low corner,
+    /// `corners[7]` the high one).
+    fn inside(p: &Point3<f64>, corners: &[Point3<f64>; 8]) -> bool {
+        (0..3).all(|a| corners[0][a] < p[a] && p[a] < corners[7][a])
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+
+        /// A distractor or the panel, moved out by `clear_reach` from wherever it was asked to
+        /// stand, never enters the object's bounding box (points of its own box, taken into
+        /// the object's frame, stay outside): the box lying with its 21 cm side towards them.
+        #[test]
+        fn things_placed_beside_the_object_stay_out_of_it(seed in proptest::prelude::any::<u64>()) {
+            let object = crate::SynthObject::built_in(crate::ObjectKind::Box).unwrap();
+            let renderer = FrameRenderer::new(&object.mesh).unwrap();
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            let (x, y) = (rng.random::<f64>() * 0.1 - 0.05, rng.random::<f64>() * 0.1 - 0.05);
+            let world_from_object = renderer.object.place(&mut rng, x, y);
+            let angle = rng.random::<f64>() * std::f64::consts::TAU;
+            let kind = rng.random_range(0..=DISTRACTORS.len());
+            let (standing, corners) = if kind == DISTRACTORS.len() {
+                (renderer.panel.on_table(rng.random::<f64>() * 6.3, 0.0, 0.0), &renderer.panel_corners)
+            } else {
+                (renderer.distractors[kind].place(&mut rng, 0.0, 0.0), &renderer.distractor_corners[kind])
+            };
+            let asked = 0.1 * rng.random::<f64>();
+            let reach = clear_reach(
+                asked,
+                angle,
+                (&world_from_object, &renderer.corners),
+                (&standing, corners),
+                (x, y),
+            );
+            proptest::prop_assert!(reach >= asked);
+            let placed = Translation3::new(x + reach * angle.cos(), y + reach * angle.sin(), 0.0)
+                * standing;
+            let object_from_thing = world_from_object.inverse() * placed;
+            for i in 0..=4 {
+                for j in 0..=4 {
+                    for k in 0..=4 {
+                        let t = |n: usize| n as f64 / 4.0;
+                        let local = Point3::from(
+                            corners[0].coords
+                                + (corners[7] - corners[0])
+                                    .component_mul(&Vector3::new(t(i), t(j), t(k))),
+                        );
+                        let p = object_from_thing * local;
+                        proptest::prop_assert!(!inside(&p, &renderer.corners), "{p} inside");
+                    }
+                }
+            }
+        }
     }
 
     #[test]

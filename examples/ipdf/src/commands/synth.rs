@@ -45,11 +45,13 @@ pub struct SynthArgs {
     /// Split folder to write (`train`, `val`, …): one plain folder name.
     #[arg(long, default_value = "train")]
     pub split: String,
-    /// Distractor objects per frame (occluders, not annotated).
+    /// Distractor objects per frame (occluders, not annotated), 10–18 cm from the object's
+    /// origin and never inside it.
     #[arg(long, default_value_t = 0)]
     pub distractors: usize,
     /// Objects per frame placed between the object and the camera (within 20° of the line of
-    /// sight, 7–10 cm in front of it), hiding part of it: a distractor shape or, one time in
+    /// sight, 7–10 cm in front of its origin, farther where they would stand inside it), hiding
+    /// part of it: a distractor shape or, one time in
     /// four, an upright panel as wide as the object's bounding radius and 1.6 times as tall.
     #[arg(long, default_value_t = 0)]
     pub occluders: usize,
