@@ -120,7 +120,7 @@ pub use pretrained::{load_backbone, load_translation_backbone};
 pub use refine::{CellHierarchy, CellMasses, RefineOptions, So3Cells, refine, refine_on};
 pub use train::{StepReport, TrainOptions, Trainer};
 pub use translation::{
-    CROP_VOLUME_SPAN, CameraIntrinsics, CropBox, CropGeometry, LabelledTranslations,
+    CROP_VOLUME_SPAN, CameraIntrinsics, CropBox, CropGeometry, CropTerms, LabelledTranslations,
     MAX_OCTREE_LEVEL, TranslationArgmax, TranslationArgmaxOptions, TranslationConfig,
     TranslationPdf, TranslationPredictor, TranslationSpace, TranslationTrainOptions,
     TranslationTrainer, WorkingVolume, translation_validation_llh, translations_to_tensor,

@@ -57,6 +57,22 @@ impl Default for ArgmaxOptions {
     }
 }
 
+impl ArgmaxOptions {
+    /// Checks that there is at least one start and the step is finite and not negative.
+    pub fn validate(&self) -> Result<(), ModelError> {
+        if self.starts == 0 || !(self.step_size >= 0.0 && self.step_size.is_finite()) {
+            return Err(ModelError::option(
+                "starts",
+                format!(
+                    "{} starts, step size {}: need ≥ 1 and a finite step ≥ 0",
+                    self.starts, self.step_size
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// The most likely rotation found by [`Predictor::argmax`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Argmax {
@@ -227,6 +243,16 @@ impl<'m> Predictor<'m> {
         image: &Tensor,
         distribution: &CellMasses,
     ) -> Result<f64, ModelError> {
+        let image_term = self.image_term(image)?;
+        self.under_resolution_for(&image_term, distribution)
+    }
+
+    /// [`Predictor::under_resolution`] for an image term from [`Predictor::image_term`].
+    pub fn under_resolution_for(
+        &mut self,
+        image_term: &Tensor,
+        distribution: &CellMasses,
+    ) -> Result<f64, ModelError> {
         let Some(level) = distribution.cells.iter().map(|&(level, _)| level).max() else {
             return Ok(0.0);
         };
@@ -251,7 +277,7 @@ impl<'m> Predictor<'m> {
                 rotations.push(self.grid(level + 1)?.rotation(child)?);
             }
         }
-        let log_density = self.log_densities(image, &rotations, distribution)?;
+        let log_density = self.log_densities_for(image_term, &rotations, distribution)?;
         let (mut sum, mut weights) = (0.0, 0.0);
         for (k, &i) in heavy.iter().enumerate() {
             let values = &log_density[9 * k..9 * k + 9];
@@ -278,7 +304,17 @@ impl<'m> Predictor<'m> {
         distribution: &CellMasses,
     ) -> Result<Vec<f64>, ModelError> {
         let image_term = self.image_term(image)?;
-        let scores = self.rotation_scores(&image_term, rotations)?;
+        self.log_densities_for(&image_term, rotations, distribution)
+    }
+
+    /// [`Predictor::log_densities`] for an image term from [`Predictor::image_term`].
+    pub fn log_densities_for(
+        &mut self,
+        image_term: &Tensor,
+        rotations: &[UnitQuaternion<f64>],
+        distribution: &CellMasses,
+    ) -> Result<Vec<f64>, ModelError> {
+        let scores = self.rotation_scores(image_term, rotations)?;
         Ok(scores
             .into_iter()
             .map(|f| f - distribution.log_normaliser)
@@ -322,7 +358,8 @@ impl<'m> Predictor<'m> {
         self.hierarchical_for(&image_term, options)
     }
 
-    fn hierarchical_for(
+    /// [`Predictor::hierarchical`] for an image term from [`Predictor::image_term`].
+    pub fn hierarchical_for(
         &mut self,
         image_term: &Tensor,
         options: &RefineOptions,
@@ -349,17 +386,22 @@ impl<'m> Predictor<'m> {
         image: &Tensor,
         options: &ArgmaxOptions,
     ) -> Result<Argmax, ModelError> {
-        if options.starts == 0 || !(options.step_size >= 0.0 && options.step_size.is_finite()) {
-            return Err(ModelError::option(
-                "starts",
-                format!(
-                    "{} starts, step size {}: need ≥ 1 and a finite step ≥ 0",
-                    options.starts, options.step_size
-                ),
-            ));
-        }
+        options.validate()?;
         let image_term = self.image_term(image)?;
         let masses = self.hierarchical_for(&image_term, &options.refine)?;
+        self.argmax_from(&image_term, &masses, options)
+    }
+
+    /// [`Predictor::argmax`] from the image term (from [`Predictor::image_term`]) and the
+    /// hierarchical distribution `masses` of the same crop, already evaluated with
+    /// `options.refine`: the same result without evaluating either again.
+    pub fn argmax_from(
+        &mut self,
+        image_term: &Tensor,
+        masses: &CellMasses,
+        options: &ArgmaxOptions,
+    ) -> Result<Argmax, ModelError> {
+        options.validate()?;
         let mut starts = Vec::with_capacity(options.starts);
         for position in masses.densest(options.starts) {
             let (level, index) = masses.cells[position];
@@ -372,7 +414,7 @@ impl<'m> Predictor<'m> {
         let score_at = |tangent: &Tensor| {
             let rotations = bases.matmul(&exp_map(tangent)).reshape([count, 9]);
             self.model
-                .scores(&image_term, &self.model.query_term(&rotations))
+                .scores(image_term, &self.model.query_term(&rotations))
         };
         let start_scores =
             Vec::<f64>::try_from(tch::no_grad(|| score_at(&tangent)).to_kind(Kind::Double))?;

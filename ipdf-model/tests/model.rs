@@ -1,7 +1,7 @@
 //! The model's shapes, gradients, distributions and refinement, through the public API.
 use ipdf_model::{
-    EncoderKind, ImplicitPdf, ModelConfig, Precision, Predictor, RefineOptions, TrainOptions,
-    Trainer, refine, set_nll,
+    ArgmaxOptions, EncoderKind, ImplicitPdf, ModelConfig, Precision, Predictor, RefineOptions,
+    TrainOptions, Trainer, refine, set_nll,
 };
 use nalgebra::UnitQuaternion;
 use proptest::prelude::*;
@@ -139,6 +139,50 @@ fn dense_distribution_sums_to_one_and_hierarchy_agrees_where_the_mass_is() {
         assert_eq!(*level, 3);
         assert!((mass - dense[*index as usize]).abs() < 1e-9 * (1.0 + dense[*index as usize]));
     }
+}
+
+/// Each `…_for` method, given the crop's image term once, returns what its image-taking
+/// counterpart returns (evaluation computes the image term once per crop).
+#[test]
+fn a_crop_scored_from_its_image_term_scores_as_from_its_image() {
+    let model = ImplicitPdf::new(ModelConfig::small(32), Device::Cpu).unwrap();
+    let mut predictor = Predictor::new(&model);
+    let image = images(1, 32, 7).get(0);
+    let options = ArgmaxOptions {
+        refine: RefineOptions::to_level(3),
+        ..ArgmaxOptions::default()
+    };
+    let masses = predictor.hierarchical(&image, &options.refine).unwrap();
+    let rotations = [
+        UnitQuaternion::identity(),
+        UnitQuaternion::from_euler_angles(0.3, -1.0, 2.0),
+    ];
+    let term = predictor.image_term(&image).unwrap();
+    assert_eq!(
+        predictor.hierarchical_for(&term, &options.refine).unwrap(),
+        masses
+    );
+    assert_eq!(
+        predictor
+            .log_densities_for(&term, &rotations, &masses)
+            .unwrap(),
+        predictor
+            .log_densities(&image, &rotations, &masses)
+            .unwrap()
+    );
+    assert_eq!(
+        predictor.under_resolution_for(&term, &masses).unwrap(),
+        predictor.under_resolution(&image, &masses).unwrap()
+    );
+    assert_eq!(
+        predictor.argmax_from(&term, &masses, &options).unwrap(),
+        predictor.argmax(&image, &options).unwrap()
+    );
+    let no_start = ArgmaxOptions {
+        starts: 0,
+        ..options
+    };
+    assert!(predictor.argmax_from(&term, &masses, &no_start).is_err());
 }
 
 #[test]

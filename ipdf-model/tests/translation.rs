@@ -135,6 +135,22 @@ fn translations_are_learned_to_a_few_millimetres() {
             .log_densities(&image, geometry, &[*truth], &distribution)
             .unwrap()[0];
         log_likelihoods.push(llh);
+        if i == 0 {
+            // The crop's terms computed once give the same results.
+            let terms = predictor.crop_terms(&image, geometry).unwrap();
+            let again = predictor
+                .hierarchical_for(&terms, geometry, &refine)
+                .unwrap();
+            assert_eq!(again, distribution);
+            let llh_again = predictor
+                .log_densities_for(&terms, &[*truth], &distribution)
+                .unwrap()[0];
+            assert_eq!(llh_again, llh);
+            let from = predictor
+                .argmax_from(&terms, geometry, &distribution, &argmax_options)
+                .unwrap();
+            assert_eq!(from, argmax);
+        }
     }
     let uniform_llh = uniform_llhs.iter().sum::<f64>() / uniform_llhs.len() as f64;
     let mean_llh = log_likelihoods.iter().sum::<f64>() / log_likelihoods.len() as f64;

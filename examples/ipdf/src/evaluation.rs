@@ -8,10 +8,11 @@ use std::path::{Path, PathBuf};
 use bop_dataset::BopDataset;
 use indicatif::ProgressBar;
 use ipdf_model::{
-    CellMasses, ImplicitPdf, Predictor, RefineOptions, TranslationPdf, UNDER_RESOLUTION_LIMIT,
-    default_device,
+    ArgmaxOptions, CellMasses, ImplicitPdf, Predictor, RefineOptions, TranslationPdf,
+    UNDER_RESOLUTION_LIMIT, default_device,
 };
 use metrics::{Distribution, GridCell, RECALL_THRESHOLD, maad, recall_maad};
+use nalgebra::UnitQuaternion;
 use serde::{Deserialize, Serialize};
 use so3_grid::Grid;
 
@@ -53,6 +54,19 @@ pub fn evaluate(
     grid: &RefineOptions,
     progress: &ProgressBar,
 ) -> Result<Scores, PipelineError> {
+    Ok(evaluate_rotations(model, examples, grid, false, progress)?.0)
+}
+
+/// [`evaluate`], and with `argmax` each crop's most likely rotation too
+/// ([`Predictor::argmax_from`] on the same distribution; empty without). Each crop's image term
+/// is computed once.
+pub fn evaluate_rotations(
+    model: &ImplicitPdf,
+    examples: &Examples,
+    grid: &RefineOptions,
+    argmax: bool,
+    progress: &ProgressBar,
+) -> Result<(Scores, Vec<UnitQuaternion<f64>>), PipelineError> {
     let Some(truths) = &examples.truth_sets else {
         return Err(PipelineError::option(
             "dataset",
@@ -60,29 +74,40 @@ pub fn evaluate(
         ));
     };
     let mut predictor = Predictor::new(model);
+    let argmax_options = ArgmaxOptions {
+        refine: *grid,
+        ..ArgmaxOptions::default()
+    };
     let (mut sum_llh, mut sum_maad, mut sum_recall, mut queries) = (0.0, 0.0, 0.0, 0);
     let mut sum_under = 0.0;
+    let mut rotations = Vec::new();
     for (i, truth) in truths.iter().enumerate() {
         let crop = to_unit_floats(&examples.crops.get(i as i64));
-        let masses = predictor.hierarchical(&crop, grid)?;
-        let densities = predictor.log_densities(&crop, truth, &masses)?;
+        let image_term = predictor.image_term(&crop)?;
+        let masses = predictor.hierarchical_for(&image_term, grid)?;
+        let densities = predictor.log_densities_for(&image_term, truth, &masses)?;
         sum_llh += densities.iter().sum::<f64>() / densities.len().max(1) as f64;
         let distribution = cell_distribution(&masses)?;
         sum_maad += maad(&distribution, truth)?;
         sum_recall += recall_maad(&distribution, truth, RECALL_THRESHOLD)?;
-        sum_under += predictor.under_resolution(&crop, &masses)?;
+        sum_under += predictor.under_resolution_for(&image_term, &masses)?;
         queries = queries.max(masses.queries);
+        if argmax {
+            let best = predictor.argmax_from(&image_term, &masses, &argmax_options)?;
+            rotations.push(best.rotation);
+        }
         progress.inc(1);
     }
     let n = truths.len().max(1) as f64;
-    Ok(Scores {
+    let scores = Scores {
         images: truths.len(),
         llh: sum_llh / n,
         maad_deg: sum_maad / n,
         recall_maad_deg: sum_recall / n,
         queries_per_image: queries,
         under_resolution: sum_under / n,
-    })
+    };
+    Ok((scores, rotations))
 }
 
 /// Which trained run to score, on what and on which grid.
@@ -227,19 +252,24 @@ pub fn evaluate_run(
     let translation_model = pose_translation_model(&request.checkpoint, &model)?;
     let passes = if translation_model.is_some() { 2 } else { 1 };
     progress.set_length(passes * examples.instances.len() as u64);
-    let scores = evaluate(&model, &examples, &grid, progress)?;
+    let (scores, rotations) = evaluate_rotations(
+        &model,
+        &examples,
+        &grid,
+        translation_model.is_some(),
+        progress,
+    )?;
     let (translation, pose) = match &translation_model {
         Some(translation_model) => {
-            let (translation, argmax) =
+            let (translation, translations) =
                 evaluate_translation(translation_model, &examples, progress)?;
             let pose = evaluate_pose(
-                &model,
                 &examples,
-                &argmax,
+                &rotations,
+                &translations,
                 &dataset,
                 info.obj_id,
                 (scores.llh, translation.llh),
-                &grid,
             )?;
             (Some(translation), Some(pose))
         }

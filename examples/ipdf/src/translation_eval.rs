@@ -6,9 +6,8 @@ use std::path::{Path, PathBuf};
 
 use indicatif::ProgressBar;
 use ipdf_model::{
-    ArgmaxOptions, CellMasses, CropGeometry, ImplicitPdf, Predictor, RefineOptions,
-    TranslationArgmax, TranslationArgmaxOptions, TranslationPdf, TranslationPredictor,
-    default_device,
+    CellMasses, CropGeometry, CropTerms, ImplicitPdf, TranslationArgmax, TranslationArgmaxOptions,
+    TranslationPdf, TranslationPredictor, default_device,
 };
 use metrics::{ModelPoints, add_s, auc, translation_error};
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
@@ -83,13 +82,23 @@ pub fn predict_translation(
     geometry: &CropGeometry,
 ) -> Result<TranslationPrediction, PipelineError> {
     let predictor = TranslationPredictor::new(model);
+    let terms = predictor.crop_terms(crop, geometry)?;
+    predict_from(&predictor, &terms, geometry)
+}
+
+/// [`predict_translation`] from the crop's terms ([`TranslationPredictor::crop_terms`]).
+fn predict_from(
+    predictor: &TranslationPredictor,
+    terms: &CropTerms,
+    geometry: &CropGeometry,
+) -> Result<TranslationPrediction, PipelineError> {
     let options = TranslationArgmaxOptions {
         cell_size: TRANSLATION_CELL_MM,
         ..TranslationArgmaxOptions::default()
     };
     let refine = predictor.refine_options(geometry, options.cell_size);
-    let distribution = predictor.hierarchical(crop, geometry, &refine)?;
-    let argmax = predictor.argmax_from(crop, geometry, &distribution, &options)?;
+    let distribution = predictor.hierarchical_for(terms, geometry, &refine)?;
+    let argmax = predictor.argmax_from(terms, geometry, &distribution, &options)?;
     Ok(TranslationPrediction {
         centres: predictor.cell_centres(&distribution, geometry)?,
         distribution,
@@ -112,9 +121,10 @@ pub fn evaluate_translation(
         let crop = to_unit_floats(&examples.crops.get(i as i64));
         let geometry = &examples.geometry[i];
         let truth = truth.translation.vector;
-        let prediction = predict_translation(model, &crop, geometry)?;
+        let terms = predictor.crop_terms(&crop, geometry)?;
+        let prediction = predict_from(&predictor, &terms, geometry)?;
         let distribution = &prediction.distribution;
-        llh += predictor.log_densities(&crop, geometry, &[truth], distribution)?[0];
+        llh += predictor.log_densities_for(&terms, &[truth], distribution)?[0];
         queries = queries.max(distribution.queries);
         let best = prediction.argmax;
         errors.push(translation_error(&best.translation, &truth));
@@ -139,30 +149,22 @@ pub fn evaluate_translation(
     Ok((scores, argmax))
 }
 
-/// ADD-S of the poses made of `model`'s most likely rotation and the given translations (mm)
-/// against the ground truth, on points sampled from `obj_id`'s mesh; with the joint LLH from the
-/// two models' mean LLHs.
+/// ADD-S of the poses made of the most likely rotations and translations (mm) of the crops of
+/// `examples` against the ground truth, on points sampled from `obj_id`'s mesh; with the joint
+/// LLH from the two models' mean LLHs.
 pub fn evaluate_pose(
-    model: &ImplicitPdf,
     examples: &Examples,
+    rotations: &[UnitQuaternion<f64>],
     translations: &[Vector3<f64>],
     dataset: &BopDataset,
     obj_id: u32,
     llh: (f64, f64),
-    refine: &RefineOptions,
 ) -> Result<PoseEval, PipelineError> {
     let truths = truth_poses(examples)?;
     let (points, diameter_mm) = model_points(dataset, obj_id)?;
-    let mut predictor = Predictor::new(model);
-    let options = ArgmaxOptions {
-        refine: *refine,
-        ..ArgmaxOptions::default()
-    };
     let mut errors = Vec::with_capacity(truths.len());
-    for (i, (truth, translation)) in truths.iter().zip(translations).enumerate() {
-        let crop = to_unit_floats(&examples.crops.get(i as i64));
-        let rotation: UnitQuaternion<f64> = predictor.argmax(&crop, &options)?.rotation;
-        let estimate = Isometry3::from_parts((*translation).into(), rotation);
+    for ((truth, rotation), translation) in truths.iter().zip(rotations).zip(translations) {
+        let estimate = Isometry3::from_parts((*translation).into(), *rotation);
         errors.push(add_s(&points, &estimate, truth));
     }
     Ok(PoseEval {

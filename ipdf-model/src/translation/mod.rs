@@ -22,6 +22,6 @@ mod volume;
 pub use fit::{LabelledTranslations, translation_validation_llh};
 pub use geometry::{CameraIntrinsics, CropBox, CropGeometry, translations_to_tensor};
 pub use model::{CROP_VOLUME_SPAN, TranslationConfig, TranslationPdf, TranslationSpace};
-pub use predict::{TranslationArgmax, TranslationArgmaxOptions, TranslationPredictor};
+pub use predict::{CropTerms, TranslationArgmax, TranslationArgmaxOptions, TranslationPredictor};
 pub use train::{TranslationTrainOptions, TranslationTrainer};
 pub use volume::{MAX_OCTREE_LEVEL, WorkingVolume};

@@ -88,8 +88,9 @@ pub struct TranslationPredictor<'m> {
     model: &'m TranslationPdf,
 }
 
-/// A crop's image term `[1, H]` and crop factors `[1, 5]`.
-struct CropTerms {
+/// What [`TranslationPredictor`] computes once per crop: the image term `[1, H]` and the crop
+/// factors `[1, 5]` ([`TranslationPredictor::crop_terms`]), for its `…_for` methods.
+pub struct CropTerms {
     image: Tensor,
     factors: Tensor,
 }
@@ -110,7 +111,13 @@ impl<'m> TranslationPredictor<'m> {
         RefineOptions::translation(&self.volume(geometry), cell_size)
     }
 
-    fn terms(&self, image: &Tensor, geometry: &CropGeometry) -> Result<CropTerms, ModelError> {
+    /// The network's terms of one crop (`[3, S, S]` or `[1, 3, S, S]`) cut with `geometry`:
+    /// computed once, scored against any number of translations.
+    pub fn crop_terms(
+        &self,
+        image: &Tensor,
+        geometry: &CropGeometry,
+    ) -> Result<CropTerms, ModelError> {
         let batch = if image.dim() == 3 {
             image.unsqueeze(0)
         } else {
@@ -149,7 +156,7 @@ impl<'m> TranslationPredictor<'m> {
         geometry: &CropGeometry,
         translations: &[Vector3<f64>],
     ) -> Result<Vec<f64>, ModelError> {
-        let terms = self.terms(image, geometry)?;
+        let terms = self.crop_terms(image, geometry)?;
         self.scores_for(&terms, translations)
     }
 
@@ -162,7 +169,17 @@ impl<'m> TranslationPredictor<'m> {
         geometry: &CropGeometry,
         options: &RefineOptions,
     ) -> Result<CellMasses, ModelError> {
-        let terms = self.terms(image, geometry)?;
+        let terms = self.crop_terms(image, geometry)?;
+        self.hierarchical_for(&terms, geometry, options)
+    }
+
+    /// [`Self::hierarchical`] for the crop's terms from [`Self::crop_terms`].
+    pub fn hierarchical_for(
+        &self,
+        terms: &CropTerms,
+        geometry: &CropGeometry,
+        options: &RefineOptions,
+    ) -> Result<CellMasses, ModelError> {
         let volume = self.volume(geometry);
         refine_on(
             &volume,
@@ -171,7 +188,7 @@ impl<'m> TranslationPredictor<'m> {
                     .iter()
                     .map(|&index| volume.cell_centre(level, index))
                     .collect::<Result<Vec<_>, _>>()?;
-                self.scores_for(&terms, &centres)
+                self.scores_for(terms, &centres)
             },
             options,
         )
@@ -186,8 +203,19 @@ impl<'m> TranslationPredictor<'m> {
         translations: &[Vector3<f64>],
         distribution: &CellMasses,
     ) -> Result<Vec<f64>, ModelError> {
+        let terms = self.crop_terms(image, geometry)?;
+        self.log_densities_for(&terms, translations, distribution)
+    }
+
+    /// [`Self::log_densities`] for the crop's terms from [`Self::crop_terms`].
+    pub fn log_densities_for(
+        &self,
+        terms: &CropTerms,
+        translations: &[Vector3<f64>],
+        distribution: &CellMasses,
+    ) -> Result<Vec<f64>, ModelError> {
         Ok(self
-            .scores(image, geometry, translations)?
+            .scores_for(terms, translations)?
             .into_iter()
             .map(|f| f - distribution.log_normaliser)
             .collect())
@@ -219,22 +247,22 @@ impl<'m> TranslationPredictor<'m> {
     ) -> Result<TranslationArgmax, ModelError> {
         options.validate()?;
         let refine = self.refine_options(geometry, options.cell_size);
-        let masses = self.hierarchical(image, geometry, &refine)?;
-        self.argmax_from(image, geometry, &masses, options)
+        let terms = self.crop_terms(image, geometry)?;
+        let masses = self.hierarchical_for(&terms, geometry, &refine)?;
+        self.argmax_from(&terms, geometry, &masses, options)
     }
 
-    /// [`Self::argmax`] from the crop's hierarchical distribution `masses`, already evaluated
-    /// (with [`Self::refine_options`] for `options.cell_size`): the same result without
-    /// evaluating it again.
+    /// [`Self::argmax`] from the crop's terms ([`Self::crop_terms`]) and its hierarchical
+    /// distribution `masses`, already evaluated (with [`Self::refine_options`] for
+    /// `options.cell_size`): the same result without evaluating either again.
     pub fn argmax_from(
         &self,
-        image: &Tensor,
+        terms: &CropTerms,
         geometry: &CropGeometry,
         masses: &CellMasses,
         options: &TranslationArgmaxOptions,
     ) -> Result<TranslationArgmax, ModelError> {
         options.validate()?;
-        let terms = self.terms(image, geometry)?;
         let volume = self.volume(geometry);
         let starts = masses
             .densest_in(&volume, options.starts)
@@ -244,7 +272,7 @@ impl<'m> TranslationPredictor<'m> {
                 volume.cell_centre(level, index)
             })
             .collect::<Result<Vec<_>, _>>()?;
-        let start_scores = self.scores_for(&terms, &starts)?;
+        let start_scores = self.scores_for(terms, &starts)?;
         let (mut best, mut best_scores) = (starts.clone(), start_scores.clone());
         let device = self.model.device();
         let mut position = translations_to_tensor(&starts, device)
