@@ -327,6 +327,8 @@ fn open_trainer(request: &TrainRequest, info: &RunInfo) -> Result<Trainer, Pipel
         seed: request.seed,
         ..TrainOptions::default()
     };
+    // Bad options are refused before the run folder is written to.
+    options.validate()?;
     start_run(out, info)?;
     Ok(Trainer::new(model, options)?)
 }
@@ -391,6 +393,8 @@ fn open_translation_trainer(
         seed: request.seed,
         ..TranslationTrainOptions::default()
     };
+    // Bad options are refused before the run folder is written to.
+    options.validate()?;
     start_run(out, info)?;
     Ok(TranslationTrainer::new(model, options)?)
 }

@@ -304,7 +304,7 @@ fn a_miniature_pipeline_writes_every_artefact() {
         "the model is for object 2",
     );
     let train = |flag: &str, value: &str| {
-        let out = dir.path().join("x");
+        let out = dir.path().join("refused");
         let mut args = vec!["train", "--dataset", s(&data), "--labels", "single"];
         args.extend(["--object", "box", "--out", s(&out), flag, value]);
         args.iter().map(|a| a.to_string()).collect::<Vec<_>>()
@@ -312,10 +312,17 @@ fn a_miniature_pipeline_writes_every_artefact() {
     for (flag, value, expected) in [
         ("--input-size", "0", "input_size"),
         ("--batch-size", "0", "--batch-size"),
+        ("--learning-rate", "0", "schedule.peak"),
+        ("--translation-learning-rate", "nan", "schedule.peak"),
     ] {
-        let args = train(flag, value);
+        let mut args = train(flag, value);
+        if flag == "--translation-learning-rate" {
+            args.extend(["--target", "translation"].map(String::from));
+        }
         let args: Vec<&str> = args.iter().map(String::as_str).collect();
         assert_fails(&args, expected);
+        // Refused before the run folder is written to.
+        assert!(!dir.path().join("refused").exists(), "{flag} {value}");
     }
     // Another run's folder is not silently continued with other data.
     assert_fails(
