@@ -67,12 +67,12 @@ impl Errors {
             .into_iter()
             .fold(f64::INFINITY, f64::min)
             .to_degrees();
-        let add = if symmetric { add_s } else { add };
+        let distance = if symmetric { add_s } else { add };
         Self {
             angle,
             offset: 1000.0 * (label * centre - truth * centre).norm(),
             vsd,
-            add: 1000.0 * add(points, label, truth),
+            add: 1000.0 * distance(points, label, truth),
             add_threshold: 0.1 * info.diameter,
         }
     }

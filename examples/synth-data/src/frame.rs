@@ -231,15 +231,13 @@ impl FrameRenderer {
                     &self.distractor_corners[kind],
                 )
             };
-            let reach = clear_reach(
-                reach,
-                angle,
-                (&world_from_object, &self.corners),
+            let placed = place_beside(
                 (&standing, corners),
+                (&world_from_object, &self.corners),
                 (x, y),
+                angle,
+                reach,
             );
-            let placed =
-                Translation3::new(x + reach * angle.cos(), y + reach * angle.sin(), 0.0) * standing;
             instances.push(Instance::new(2 + kind, camera_from_world * placed));
             materials.push(Material::Uniform(std::array::from_fn(|_| {
                 0.2 + 0.7 * rng.random::<f32>()
@@ -334,18 +332,18 @@ fn box_corners(mesh: &TriangleMesh) -> [Point3<f64>; 8] {
 /// Gap (metres) kept between the bounding boxes of the object and of a thing placed beside it.
 const CLEARANCE: f64 = 0.005;
 
-/// How far from the object's origin `(x, y)` along the table direction `angle` a thing standing
-/// at the table's origin (`thing`: its table pose and bounding-box corners) is moved: `reach`,
-/// or farther where their bounding boxes, seen from above, would come within [`CLEARANCE`] of
-/// each other along that direction (a panel 7 cm in front of the centre of a box 21 cm long
-/// stood inside it).
-fn clear_reach(
-    reach: f64,
-    angle: f64,
-    object: (&Isometry3<f64>, &[Point3<f64>; 8]),
+/// The table pose of a thing standing at the table's origin (`thing`: its table pose and
+/// bounding-box corners) moved out from the object's origin `(x, y)` along the table direction
+/// `angle`: by `reach`, or farther where their bounding boxes, seen from above, would come
+/// within [`CLEARANCE`] of each other along that direction (a panel 7 cm in front of the centre
+/// of a box 21 cm long stood inside it).
+fn place_beside(
     thing: (&Isometry3<f64>, &[Point3<f64>; 8]),
+    object: (&Isometry3<f64>, &[Point3<f64>; 8]),
     (x, y): (f64, f64),
-) -> f64 {
+    angle: f64,
+    reach: f64,
+) -> Isometry3<f64> {
     let (dx, dy) = (angle.cos(), angle.sin());
     let support = |(pose, corners): (&Isometry3<f64>, &[Point3<f64>; 8]), sign: f64| {
         corners
@@ -357,7 +355,8 @@ fn clear_reach(
             .fold(f64::NEG_INFINITY, f64::max)
     };
     let object_reach = support(object, 1.0) - (x * dx + y * dy);
-    reach.max(object_reach + support(thing, -1.0) + CLEARANCE)
+    let reach = reach.max(object_reach + support(thing, -1.0) + CLEARANCE);
+    Translation3::new(x + reach * dx, y + reach * dy, 0.0) * thing.0
 }
 
 /// A camera-from-world pose looking at `target` from a random elevation, azimuth and
@@ -506,7 +505,7 @@ mod tests {
     proptest::proptest! {
         #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
 
-        /// A distractor or the panel, moved out by `clear_reach` from wherever it was asked to
+        /// A distractor or the panel, moved out by `place_beside` from wherever it was asked to
         /// stand, never enters the object's bounding box (points of its own box, taken into
         /// the object's frame, stay outside): the box lying with its 21 cm side towards them.
         #[test]
@@ -524,16 +523,18 @@ mod tests {
                 (renderer.distractors[kind].place(&mut rng, 0.0, 0.0), &renderer.distractor_corners[kind])
             };
             let asked = 0.1 * rng.random::<f64>();
-            let reach = clear_reach(
-                asked,
-                angle,
-                (&world_from_object, &renderer.corners),
+            let placed = place_beside(
                 (&standing, corners),
+                (&world_from_object, &renderer.corners),
                 (x, y),
+                angle,
+                asked,
             );
-            proptest::prop_assert!(reach >= asked);
-            let placed = Translation3::new(x + reach * angle.cos(), y + reach * angle.sin(), 0.0)
-                * standing;
+            // Along `angle`, at least as far as asked.
+            let moved = placed.translation.vector.xy() - nalgebra::Vector2::new(x, y);
+            let direction = nalgebra::Vector2::new(angle.cos(), angle.sin());
+            proptest::prop_assert!((moved - direction * moved.norm()).norm() < 1e-12, "{moved}");
+            proptest::prop_assert!(moved.norm() >= asked - 1e-12, "{moved} {asked}");
             let object_from_thing = world_from_object.inverse() * placed;
             for i in 0..=4 {
                 for j in 0..=4 {
