@@ -341,7 +341,16 @@ impl<'m> Predictor<'m> {
     /// summing to 1; each cell's density is `mass · N / π²`).
     pub fn probabilities(&mut self, image: &Tensor, level: u8) -> Result<Vec<f64>, ModelError> {
         let image_term = self.image_term(image)?;
-        let scores = self.grid_scores(&image_term, level)?;
+        self.probabilities_for(&image_term, level)
+    }
+
+    /// [`Predictor::probabilities`] for an image term from [`Predictor::image_term`].
+    pub fn probabilities_for(
+        &mut self,
+        image_term: &Tensor,
+        level: u8,
+    ) -> Result<Vec<f64>, ModelError> {
+        let scores = self.grid_scores(image_term, level)?;
         let masses = scores.softmax(0, Kind::Double);
         Ok(Vec::<f64>::try_from(&masses)?)
     }

@@ -171,6 +171,10 @@ fn a_crop_scored_from_its_image_term_scores_as_from_its_image() {
             .unwrap()
     );
     assert_eq!(
+        predictor.probabilities_for(&term, 2).unwrap(),
+        predictor.probabilities(&image, 2).unwrap()
+    );
+    assert_eq!(
         predictor.under_resolution_for(&term, &masses).unwrap(),
         predictor.under_resolution(&image, &masses).unwrap()
     );

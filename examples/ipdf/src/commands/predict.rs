@@ -104,9 +104,13 @@ pub fn run(args: &PredictArgs) -> Result<Value> {
 fn predict_rotation(model: &ImplicitPdf, crop: &FileCrop, args: &PredictArgs) -> Result<Value> {
     let crop = crop_tensor(&crop.pixels, model.config().input_size as usize);
     let mut predictor = Predictor::new(model);
-    let masses = predictor.probabilities(&crop, args.level)?;
+    // The encoder runs once: the grid's masses and the argmax share the crop's image term.
+    let image_term = predictor.image_term(&crop)?;
+    let masses = predictor.probabilities_for(&image_term, args.level)?;
     write_f32(&args.out, &[masses.len() as u64], &masses)?;
-    let best = predictor.argmax(&crop, &ArgmaxOptions::default())?;
+    let options = ArgmaxOptions::default();
+    let refined = predictor.hierarchical_for(&image_term, &options.refine)?;
+    let best = predictor.argmax_from(&image_term, &refined, &options)?;
     let grid = Grid::new(args.level)?;
     let mut order: Vec<usize> = (0..masses.len()).collect();
     order.sort_by(|&a, &b| masses[b].total_cmp(&masses[a]));
