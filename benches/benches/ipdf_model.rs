@@ -41,10 +41,7 @@ fn translation_model(encoder: EncoderKind) -> TranslationPdf {
         crop_extent: 250.0,
     };
     let config = TranslationConfig {
-        network: ModelConfig {
-            fourier_components: 6,
-            ..config(encoder)
-        },
+        network: config(encoder),
         space,
     };
     TranslationPdf::new(config, Device::Cpu).unwrap()

@@ -67,8 +67,8 @@ pub struct TrainRequest {
     pub labels: LabelSource,
     /// Rotation or translation (a pose is one request of each).
     pub target: Target,
-    /// The network (its `seed` initialises the weights; translation models use 6 Fourier
-    /// components of their query whatever this says).
+    /// The network (its `seed` initialises the weights; its Fourier components encode the
+    /// query, a rotation or a translation).
     pub model: ModelConfig,
     /// Epochs.
     pub epochs: u64,
@@ -369,10 +369,7 @@ fn open_translation_trainer(
 ) -> Result<TranslationTrainer, PipelineError> {
     let device = default_device();
     let out = &request.out;
-    let network = ModelConfig {
-        fourier_components: 6,
-        ..request.model.clone()
-    };
+    let network = request.model.clone();
     if resumes(out, info)? {
         let trainer = TranslationTrainer::resume(out, device)?;
         network.check_same(

@@ -156,15 +156,15 @@ pub struct TranslationConfig {
 }
 
 impl TranslationConfig {
-    /// A small network for quick CPU runs and tests: [`ModelConfig::small`] with 6 Fourier
-    /// components (the depth coordinate needs finer frequencies than rotation matrices: its
-    /// finest period, 2π/32, is a 10% change of depth).
+    /// A small network for quick CPU runs and tests: [`ModelConfig::small`], whose 3 Fourier
+    /// components encode translations as they do rotations. Their finest period, 2π/4 in the
+    /// depth coordinate, is a 120% change of depth. Trained on the quick preset's 800 crops per
+    /// object, 6 components (finest period a 10% change) missed new crops more often and by
+    /// more: on 200 new frames the box's mean error was 19 mm against 17 with 3, the can's 8
+    /// against 3.5, the bowl's 10 against 2.6, at LLHs higher by 0.3 nats at most.
     pub fn small(input_size: i64, space: TranslationSpace) -> Self {
         Self {
-            network: ModelConfig {
-                fourier_components: 6,
-                ..ModelConfig::small(input_size)
-            },
+            network: ModelConfig::small(input_size),
             space,
         }
     }
