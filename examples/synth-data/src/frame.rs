@@ -220,17 +220,11 @@ impl FrameRenderer {
                 (towards_camera + spread, 0.07 + 0.03 * rng.random::<f64>())
             };
             // Stood at the table's origin first, then moved out along `angle`.
-            let (standing, corners) = if kind == DISTRACTORS.len() {
+            let (standing, corners) = self.standing_at_origin(kind, rng, |rng| {
                 // The panel faces the camera, give or take 30°.
                 let turn = (rng.random::<f64>() * 2.0 - 1.0) * 30f64.to_radians();
-                let yaw = towards_camera - std::f64::consts::FRAC_PI_2 + turn;
-                (self.panel.on_table(yaw, 0.0, 0.0), &self.panel_corners)
-            } else {
-                (
-                    self.distractors[kind].place(rng, 0.0, 0.0),
-                    &self.distractor_corners[kind],
-                )
-            };
+                towards_camera - std::f64::consts::FRAC_PI_2 + turn
+            });
             let placed = place_beside(
                 (&standing, corners),
                 (&world_from_object, &self.corners),
@@ -312,6 +306,26 @@ impl FrameRenderer {
             v0: clamp(low[1].floor(), camera.height),
             u1: clamp(high[0].ceil() + 1.0, camera.width),
             v1: clamp(high[1].ceil() + 1.0, camera.height),
+        }
+    }
+
+    /// Distractor shape `kind`, or the panel for `kind == DISTRACTORS.len()` turned to the yaw
+    /// `panel_yaw` draws (called for the panel only), standing at the table's origin: its table
+    /// pose and its bounding-box corners, for [`place_beside`].
+    fn standing_at_origin<R: Rng>(
+        &self,
+        kind: usize,
+        rng: &mut R,
+        panel_yaw: impl FnOnce(&mut R) -> f64,
+    ) -> (Isometry3<f64>, &[Point3<f64>; 8]) {
+        if kind == DISTRACTORS.len() {
+            let yaw = panel_yaw(rng);
+            (self.panel.on_table(yaw, 0.0, 0.0), &self.panel_corners)
+        } else {
+            (
+                self.distractors[kind].place(rng, 0.0, 0.0),
+                &self.distractor_corners[kind],
+            )
         }
     }
 }
@@ -517,11 +531,8 @@ mod tests {
             let world_from_object = renderer.object.place(&mut rng, x, y);
             let angle = rng.random::<f64>() * std::f64::consts::TAU;
             let kind = rng.random_range(0..=DISTRACTORS.len());
-            let (standing, corners) = if kind == DISTRACTORS.len() {
-                (renderer.panel.on_table(rng.random::<f64>() * 6.3, 0.0, 0.0), &renderer.panel_corners)
-            } else {
-                (renderer.distractors[kind].place(&mut rng, 0.0, 0.0), &renderer.distractor_corners[kind])
-            };
+            let (standing, corners) =
+                renderer.standing_at_origin(kind, &mut rng, |rng| rng.random::<f64>() * 6.3);
             let asked = 0.1 * rng.random::<f64>();
             let placed = place_beside(
                 (&standing, corners),
