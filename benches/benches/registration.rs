@@ -149,6 +149,30 @@ fn neighbours(c: &mut Criterion) {
                 .sum::<u32>()
         })
     });
+    // The same queries through the grid that `PointIndex::with_nearest_grid` adds (the model
+    // index of labelling's ICP), and within 1.5 voxels as ICP's refinement asks.
+    let grid = PointIndex::with_nearest_grid(&points);
+    group.bench_function(format!("nearest/grid/{}", points.len()), |b| {
+        b.iter(|| {
+            shifted
+                .iter()
+                .map(|p| grid.nearest(&[p.x, p.y, p.z]).unwrap().index)
+                .sum::<u32>()
+        })
+    });
+    for (name, index) in [("kiddo", &kiddo), ("grid", &grid)] {
+        group.bench_function(
+            format!("nearest_within_1.5_voxels/{name}/{}", points.len()),
+            |b| {
+                b.iter(|| {
+                    shifted
+                        .iter()
+                        .filter_map(|p| index.nearest_within_radius(&[p.x, p.y, p.z], 1.5 * VOXEL))
+                        .count()
+                })
+            },
+        );
+    }
     group.bench_function(format!("nearest/parry_bvh/{}", points.len()), |b| {
         b.iter(|| {
             shifted

@@ -36,6 +36,7 @@
 //! # Ok::<(), registration::RegistrationError>(())
 //! ```
 
+mod cell_grid;
 mod cloud;
 mod error;
 mod fgr;

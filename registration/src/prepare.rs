@@ -66,6 +66,17 @@ pub struct PreparedCloud {
     pub index: PointIndex,
 }
 
+impl PreparedCloud {
+    /// The same cloud, indexed with the grid of [`PointIndex::with_nearest_grid`] as well: for
+    /// a cloud that many ICP runs align to, such as a model.
+    pub fn with_nearest_grid(self) -> Self {
+        Self {
+            index: PointIndex::with_nearest_grid(self.cloud.points()),
+            ..self
+        }
+    }
+}
+
 /// Downsamples `cloud`, gives it normals and FPFH features, and indexes both.
 ///
 /// Errors: an empty cloud, bad options, a cloud (after downsampling) with fewer than 3 points or

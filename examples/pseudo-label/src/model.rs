@@ -15,7 +15,8 @@ pub struct ObjectModel {
     pub diameter: f64,
     /// Voxel size of the clouds (metres).
     pub voxel: f32,
-    /// The model's surface samples, downsampled, with outward normals and FPFH features.
+    /// The model's surface samples, downsampled, with outward normals and FPFH features, indexed
+    /// for ICP's nearest-point queries.
     pub cloud: PreparedCloud,
     /// Its self-symmetries (model frame, metres), identity first: at most
     /// `LabelOptions::max_symmetries`, spread evenly over those found.
@@ -42,7 +43,7 @@ impl ObjectModel {
         let cloud = PointCloud::new(points)?.with_normals(normals)?;
         let prepare = PrepareOptions::for_voxel(voxel)
             .oriented(NormalOrientation::Consistent { neighbours: 10 });
-        let cloud = prepare_cloud(&cloud, &prepare)?;
+        let cloud = prepare_cloud(&cloud, &prepare)?.with_nearest_grid();
         let found = discover_symmetries(&cloud, voxel);
         let rotations: Vec<_> = found.iter().map(|s| s.rotation).collect();
         let mut kept = spread(&rotations, options.max_symmetries);

@@ -1,0 +1,171 @@
+//! Exact nearest-point search through a grid of cells, each listing the points that can be
+//! nearest to a query inside it.
+//!
+//! ICP asks the model's index for the nearest point of each observed point, hundreds of
+//! thousands of times per instance, and those queries lie near the model's surface. For a cell
+//! of centre `c` and half-diagonal `h` whose nearest point lies at `d*`, the nearest point of any
+//! query in the cell lies within `d* + 2h` of `c`: those points are the cell's candidates, a
+//! handful near the surface, and a query costs one cell lookup and that handful of distances
+//! where the k-d tree descends and backtracks. Cells farther than a few cells from every point
+//! keep no candidates, only `d*`, which still answers a query whose radius is smaller than the
+//! distance to the cell; the k-d tree answers the rest.
+
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+
+/// Cells whose nearest point lies farther than this many cell edges keep no candidates.
+const FAR_CELLS: f32 = 3.0;
+
+/// Cells at most (the grid is left out beyond).
+const MAX_CELLS: usize = 1 << 20;
+
+/// The points, their candidate lists by cell (compressed rows: the candidates of cell `i` are
+/// `candidates[starts[i]..starts[i + 1]]`, indices into `points`).
+pub(crate) struct CellGrid {
+    /// Corner of cell (0, 0, 0).
+    origin: [f32; 3],
+    /// Edge of a cell.
+    cell: f32,
+    /// Cells along x, y, z.
+    dims: [usize; 3],
+    starts: Vec<u32>,
+    candidates: Vec<u32>,
+    /// Per cell, a lower bound on the distance from any of its queries to the nearest point.
+    clearance: Vec<f32>,
+    points: Vec<[f32; 3]>,
+}
+
+/// The outcome of a grid search.
+pub(crate) enum GridAnswer {
+    /// The nearest point (index, squared distance), or `None` when no point lies within the
+    /// radius asked for.
+    Found(Option<(u32, f32)>),
+    /// The grid cannot tell: the query lies outside it, or far from every point with a
+    /// radius that reaches the points.
+    Undecided,
+}
+
+/// Squared Euclidean distance, summed in kiddo's order, so that both give the same bits.
+fn distance_squared(a: &[f32; 3], b: &[f32; 3]) -> f32 {
+    (a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2])
+}
+
+impl CellGrid {
+    /// The grid over `points`, indexed by `tree` (the same points), with cells of the points'
+    /// median spacing; `None` for fewer than 64 points or where it would take too many cells.
+    pub(crate) fn new(points: &[[f32; 3]], tree: &ImmutableKdTree<f32, 3>) -> Option<Self> {
+        if points.len() < 64 {
+            return None;
+        }
+        let two = std::num::NonZeroUsize::new(2).expect("not zero");
+        let mut spacing: Vec<f32> = points
+            .iter()
+            .map(|p| {
+                let found = tree
+                    .query(p)
+                    .nearest_n::<SquaredEuclidean<f32>>(two)
+                    .execute();
+                found.last().map_or(0.0, |n| n.distance.sqrt())
+            })
+            .collect();
+        let middle = spacing.len() / 2;
+        let cell = *spacing.select_nth_unstable_by(middle, f32::total_cmp).1;
+        if !(cell.is_finite() && cell > 0.0) {
+            return None;
+        }
+        let margin = FAR_CELLS * cell;
+        let mut origin = [f32::INFINITY; 3];
+        let mut far = [f32::NEG_INFINITY; 3];
+        for p in points {
+            for k in 0..3 {
+                origin[k] = origin[k].min(p[k] - margin);
+                far[k] = far[k].max(p[k] + margin);
+            }
+        }
+        let dims = std::array::from_fn(|k| ((far[k] - origin[k]) / cell).ceil() as usize + 1);
+        let count = dims
+            .iter()
+            .try_fold(1usize, |n: usize, &d| n.checked_mul(d))?;
+        if count > MAX_CELLS {
+            return None;
+        }
+        let half_diagonal = 0.5 * 3f32.sqrt() * cell;
+        let mut grid = Self {
+            origin,
+            cell,
+            dims,
+            starts: Vec::with_capacity(count + 1),
+            candidates: Vec::new(),
+            clearance: Vec::with_capacity(count),
+            points: points.to_vec(),
+        };
+        grid.starts.push(0);
+        for z in 0..dims[2] {
+            for y in 0..dims[1] {
+                for x in 0..dims[0] {
+                    let centre = [x, y, z].map(|i| i as f32 + 0.5);
+                    let centre: [f32; 3] = std::array::from_fn(|k| origin[k] + centre[k] * cell);
+                    let nearest = tree
+                        .query(&centre)
+                        .nearest_one::<SquaredEuclidean<f32>>()
+                        .execute();
+                    let closest = nearest.distance.sqrt();
+                    // A sliver more than the bounds, for rounding.
+                    let slack = 1e-3 * cell;
+                    grid.clearance.push(closest - half_diagonal - slack);
+                    if closest <= margin {
+                        let reach = closest + 2.0 * half_diagonal + slack;
+                        let mut found: Vec<u32> = tree
+                            .query(&centre)
+                            .within::<SquaredEuclidean<f32>>(reach * reach)
+                            .unsorted()
+                            .execute()
+                            .into_iter()
+                            .map(|n| n.item)
+                            .collect();
+                        found.sort_unstable();
+                        grid.candidates.extend(found);
+                    }
+                    grid.starts.push(u32::try_from(grid.candidates.len()).ok()?);
+                }
+            }
+        }
+        Some(grid)
+    }
+
+    /// The nearest point to `query` within `radius` (`f32::INFINITY`: any), ties to the lower
+    /// index.
+    pub(crate) fn nearest(&self, query: &[f32; 3], radius: f32) -> GridAnswer {
+        let mut at = [0usize; 3];
+        for k in 0..3 {
+            let c = (query[k] - self.origin[k]) / self.cell;
+            if !(c >= 0.0 && c < self.dims[k] as f32) {
+                // Outside the grid, which reaches `FAR_CELLS` cells past every point.
+                return if radius < (FAR_CELLS - 0.01) * self.cell {
+                    GridAnswer::Found(None)
+                } else {
+                    GridAnswer::Undecided
+                };
+            }
+            // Truncation: the floor of a number that is not negative.
+            at[k] = c as usize;
+        }
+        let i = (at[2] * self.dims[1] + at[1]) * self.dims[0] + at[0];
+        let (from, to) = (self.starts[i] as usize, self.starts[i + 1] as usize);
+        if from == to {
+            return if self.clearance[i] > radius {
+                GridAnswer::Found(None)
+            } else {
+                GridAnswer::Undecided
+            };
+        }
+        let mut best: Option<(u32, f32)> = None;
+        // Candidates come in increasing index: the first of equal distances stays.
+        for &id in &self.candidates[from..to] {
+            let d = distance_squared(&self.points[id as usize], query);
+            if best.is_none_or(|(_, b)| d < b) {
+                best = Some((id, d));
+            }
+        }
+        GridAnswer::Found(best.filter(|&(_, d)| d <= radius * radius))
+    }
+}
