@@ -141,26 +141,19 @@ fn neighbours(c: &mut Criterion) {
         .iter()
         .map(|p| p + nalgebra::Vector3::new(0.001, -0.002, 0.001))
         .collect();
-    group.bench_function(format!("nearest/kiddo/{}", points.len()), |b| {
-        b.iter(|| {
-            shifted
-                .iter()
-                .map(|p| kiddo.nearest(&[p.x, p.y, p.z]).unwrap().index)
-                .sum::<u32>()
-        })
-    });
-    // The same queries through the grid that `PointIndex::with_nearest_grid` adds (the model
-    // index of labelling's ICP), and within 1.5 voxels as ICP's refinement asks.
+    // kiddo, and the grid that `PointIndex::with_nearest_grid` adds (the model index of
+    // labelling's ICP): the nearest point, and the nearest within 1.5 voxels as ICP's
+    // refinement asks.
     let grid = PointIndex::with_nearest_grid(&points);
-    group.bench_function(format!("nearest/grid/{}", points.len()), |b| {
-        b.iter(|| {
-            shifted
-                .iter()
-                .map(|p| grid.nearest(&[p.x, p.y, p.z]).unwrap().index)
-                .sum::<u32>()
-        })
-    });
     for (name, index) in [("kiddo", &kiddo), ("grid", &grid)] {
+        group.bench_function(format!("nearest/{name}/{}", points.len()), |b| {
+            b.iter(|| {
+                shifted
+                    .iter()
+                    .map(|p| index.nearest(&[p.x, p.y, p.z]).unwrap().index)
+                    .sum::<u32>()
+            })
+        });
         group.bench_function(
             format!("nearest_within_1.5_voxels/{name}/{}", points.len()),
             |b| {
