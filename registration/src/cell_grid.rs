@@ -89,6 +89,8 @@ impl CellGrid {
             return None;
         }
         let half_diagonal = 0.5 * 3f32.sqrt() * cell;
+        // A sliver more than the bounds, for rounding.
+        let slack = 1e-3 * cell;
         let mut grid = Self {
             origin,
             cell,
@@ -109,8 +111,6 @@ impl CellGrid {
                         .nearest_one::<SquaredEuclidean<f32>>()
                         .execute();
                     let closest = nearest.distance.sqrt();
-                    // A sliver more than the bounds, for rounding.
-                    let slack = 1e-3 * cell;
                     grid.clearance.push(closest - half_diagonal - slack);
                     if closest <= margin {
                         let reach = closest + 2.0 * half_diagonal + slack;

@@ -21,7 +21,8 @@ pub struct Neighbour {
     pub distance_squared: f32,
 }
 
-/// A k-d tree over 3-D points (f32, metres).
+/// A k-d tree over 3-D points (f32, metres), with a grid for nearest-point queries where
+/// built by [`PointIndex::with_nearest_grid`].
 pub struct PointIndex {
     tree: Option<ImmutableKdTree<f32, 3>>,
     /// With [`PointIndex::with_nearest_grid`]: answers nearest-point queries near the points.
@@ -59,13 +60,19 @@ impl PointIndex {
     /// wide, take tens of milliseconds for a few thousand points: for a cloud that many
     /// ICP runs align to (a model), not for one aligned once.
     pub fn with_nearest_grid(points: &[Point3<f32>]) -> Self {
+        let mut index = Self::from_points(points);
+        index.add_nearest_grid(points);
+        index
+    }
+
+    /// Builds the grid of [`PointIndex::with_nearest_grid`] for an index of `points` (the
+    /// very points it was built from), without building its tree again.
+    pub(crate) fn add_nearest_grid(&mut self, points: &[Point3<f32>]) {
         let entries: Vec<[f32; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
-        let mut index = Self::new(&entries);
-        index.grid = index
+        self.grid = self
             .tree
             .as_ref()
             .and_then(|tree| CellGrid::new(&entries, tree));
-        index
     }
 
     /// The nearest entry to `query`, or `None` for an empty index.

@@ -69,11 +69,9 @@ pub struct PreparedCloud {
 impl PreparedCloud {
     /// The same cloud, indexed with the grid of [`PointIndex::with_nearest_grid`] as well: for
     /// a cloud that many ICP runs align to, such as a model.
-    pub fn with_nearest_grid(self) -> Self {
-        Self {
-            index: PointIndex::with_nearest_grid(self.cloud.points()),
-            ..self
-        }
+    pub fn with_nearest_grid(mut self) -> Self {
+        self.index.add_nearest_grid(self.cloud.points());
+        self
     }
 }
 
