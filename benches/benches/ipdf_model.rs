@@ -9,12 +9,12 @@ use std::hint::black_box;
 use std::time::Duration;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use ipdf_model::{
-    CameraIntrinsics, CropBox, CropGeometry, EncoderKind, ImplicitPdf, ModelConfig, Precision,
-    Predictor, RefineOptions, TrainOptions, Trainer, TranslationConfig, TranslationPdf,
-    TranslationPredictor, TranslationSpace, TranslationTrainOptions, TranslationTrainer,
-    WorkingVolume,
+use ipdf_model::rotation::{ImplicitPdf, Precision, Predictor, TrainOptions, Trainer};
+use ipdf_model::translation::{
+    CameraIntrinsics, CropGeometry, TranslationConfig, TranslationPdf, TranslationPredictor,
+    TranslationSpace, TranslationTrainOptions, TranslationTrainer, WorkingVolume,
 };
+use ipdf_model::{CropBox, EncoderKind, ModelConfig, RefineOptions};
 use nalgebra::{UnitQuaternion, Vector3};
 use so3_grid::random_rotations;
 use tch::{Device, Kind, Tensor};

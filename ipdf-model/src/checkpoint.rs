@@ -10,12 +10,9 @@ use serde::{Deserialize, Serialize};
 use tch::{Device, Tensor, nn};
 
 use crate::optim::Adam;
-use crate::train::{TrainOptions, Trainer};
-use crate::translation::{
-    TranslationConfig, TranslationPdf, TranslationSpace, TranslationTrainOptions,
-    TranslationTrainer,
-};
-use crate::{ImplicitPdf, ModelConfig, ModelError};
+use crate::rotation::TrainOptions;
+use crate::translation::{TranslationSpace, TranslationTrainOptions};
+use crate::{ModelConfig, ModelError};
 
 /// The name of a checkpoint's JSON file.
 pub const CHECKPOINT_FILE: &str = "checkpoint.json";
@@ -28,8 +25,9 @@ pub struct CheckpointInfo {
     pub format: String,
     /// The model's configuration.
     pub model: ModelConfig,
-    /// The working volume and query normalisation of a translation model ([`TranslationPdf`]);
-    /// absent for a rotation model ([`ImplicitPdf`]).
+    /// The working volume and query normalisation of a translation model
+    /// ([`crate::translation::TranslationPdf`]); absent for a rotation model
+    /// ([`crate::rotation::ImplicitPdf`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub translation: Option<TranslationSpace>,
     /// Training options of a rotation model, when saved by a trainer.
@@ -65,146 +63,8 @@ impl CheckpointInfo {
     }
 }
 
-impl ModelConfig {
-    /// Fails with [`ModelError::ConfigMismatch`] naming the first field where `found` (read
-    /// from the checkpoint at `path`) differs from `self`.
-    pub fn check_same(&self, found: &ModelConfig, path: &Path) -> Result<(), ModelError> {
-        let fields: [(&'static str, String, String); 5] = [
-            (
-                "encoder",
-                self.encoder.to_string(),
-                found.encoder.to_string(),
-            ),
-            (
-                "input_size",
-                self.input_size.to_string(),
-                found.input_size.to_string(),
-            ),
-            (
-                "fourier_components",
-                self.fourier_components.to_string(),
-                found.fourier_components.to_string(),
-            ),
-            (
-                "head_sizes",
-                format!("{:?}", self.head_sizes),
-                format!("{:?}", found.head_sizes),
-            ),
-            ("seed", self.seed.to_string(), found.seed.to_string()),
-        ];
-        match fields.into_iter().find(|(_, a, b)| a != b) {
-            Some((field, expected, found)) => Err(ModelError::ConfigMismatch {
-                path: path.to_path_buf(),
-                field,
-                expected,
-                found,
-            }),
-            None => Ok(()),
-        }
-    }
-}
-
-impl ImplicitPdf {
-    /// Writes the model as a checkpoint in `dir` (created if missing), with no training state.
-    pub fn save(&self, dir: &Path) -> Result<(), ModelError> {
-        let info = CheckpointInfo {
-            model: self.config().clone(),
-            ..empty_info()
-        };
-        write_checkpoint(dir, self.var_store(), info, None)
-    }
-
-    /// The model of the checkpoint in `dir`, on `device`; a translation model's checkpoint is
-    /// refused.
-    pub fn load(dir: &Path, device: Device) -> Result<Self, ModelError> {
-        let info = CheckpointInfo::read(dir)?;
-        if info.translation.is_some() {
-            return Err(ModelError::checkpoint(
-                &dir.join(CHECKPOINT_FILE),
-                "translation: this is a translation model's checkpoint, not a rotation model's",
-            ));
-        }
-        let mut model = ImplicitPdf::new(info.model.clone(), device)?;
-        load_exact(model.var_store_mut(), &dir.join(&info.weights))?;
-        Ok(model)
-    }
-}
-
-impl TranslationPdf {
-    /// Writes the model as a checkpoint in `dir` (created if missing), with no training state.
-    pub fn save(&self, dir: &Path) -> Result<(), ModelError> {
-        write_checkpoint(dir, self.var_store(), translation_info(self, None), None)
-    }
-
-    /// The translation model of the checkpoint in `dir`, on `device`; a rotation model's
-    /// checkpoint is refused.
-    pub fn load(dir: &Path, device: Device) -> Result<Self, ModelError> {
-        let info = CheckpointInfo::read(dir)?;
-        let Some(space) = info.translation else {
-            return Err(ModelError::checkpoint(
-                &dir.join(CHECKPOINT_FILE),
-                "translation: missing (a rotation model's checkpoint, not a translation model's)",
-            ));
-        };
-        let config = TranslationConfig {
-            network: info.model.clone(),
-            space,
-        };
-        let mut model = TranslationPdf::new(config, device)?;
-        load_exact(model.var_store_mut(), &dir.join(&info.weights))?;
-        Ok(model)
-    }
-}
-
-fn translation_info(
-    model: &TranslationPdf,
-    training: Option<&TranslationTrainOptions>,
-) -> CheckpointInfo {
-    CheckpointInfo {
-        model: model.config().network.clone(),
-        translation: Some(model.config().space),
-        translation_training: training.cloned(),
-        ..empty_info()
-    }
-}
-
-impl TranslationTrainer {
-    /// Writes the model, Adam's state, the options and the step as a checkpoint in `dir`.
-    pub fn save(&self, dir: &Path) -> Result<(), ModelError> {
-        write_checkpoint(
-            dir,
-            self.model().var_store(),
-            translation_info(self.model(), Some(self.options())),
-            Some((self.adam(), self.step())),
-        )
-    }
-
-    /// Continues the training saved in `dir` on `device`, at its step, with its options.
-    pub fn resume(dir: &Path, device: Device) -> Result<Self, ModelError> {
-        let info = CheckpointInfo::read(dir)?;
-        let json = dir.join(CHECKPOINT_FILE);
-        let (Some(options), Some(optimizer)) =
-            (info.translation_training.clone(), info.optimizer.clone())
-        else {
-            return Err(ModelError::checkpoint(
-                &json,
-                "translation_training, optimizer: missing (saved without training state)",
-            ));
-        };
-        let model = TranslationPdf::load(dir, device)?;
-        let mut trainer = TranslationTrainer::at_step(model, options, info.step)?;
-        let path = dir.join(optimizer);
-        let saved = read_tensors(&path, device)?;
-        trainer
-            .adam_mut()
-            .load_state(saved)
-            .map_err(|reason| ModelError::checkpoint(&path, reason))?;
-        Ok(trainer)
-    }
-}
-
 /// A rotation model's info with no files or step yet.
-fn empty_info() -> CheckpointInfo {
+pub(crate) fn empty_info() -> CheckpointInfo {
     CheckpointInfo {
         format: FORMAT.into(),
         model: ModelConfig::default(),
@@ -217,49 +77,10 @@ fn empty_info() -> CheckpointInfo {
     }
 }
 
-impl Trainer {
-    /// Writes the model, Adam's state, the options and the step as a checkpoint in `dir`.
-    pub fn save(&self, dir: &Path) -> Result<(), ModelError> {
-        let info = CheckpointInfo {
-            model: self.model.config().clone(),
-            training: Some(self.options.clone()),
-            ..empty_info()
-        };
-        write_checkpoint(
-            dir,
-            self.model.var_store(),
-            info,
-            Some((&self.adam, self.step)),
-        )
-    }
-
-    /// Continues the training saved in `dir` on `device`, at its step, with its options.
-    pub fn resume(dir: &Path, device: Device) -> Result<Self, ModelError> {
-        let info = CheckpointInfo::read(dir)?;
-        let json = dir.join(CHECKPOINT_FILE);
-        let (Some(options), Some(optimizer)) = (info.training.clone(), info.optimizer.clone())
-        else {
-            return Err(ModelError::checkpoint(
-                &json,
-                "training, optimizer: missing (saved without training state)",
-            ));
-        };
-        let model = ImplicitPdf::load(dir, device)?;
-        let mut trainer = Trainer::at_step(model, options, info.step)?;
-        let path = dir.join(optimizer);
-        let saved = read_tensors(&path, device)?;
-        trainer
-            .adam
-            .load_state(saved)
-            .map_err(|reason| ModelError::checkpoint(&path, reason))?;
-        Ok(trainer)
-    }
-}
-
 /// Writes `var_store` (and Adam's state at a step) as `model-<step>.safetensors` (and
 /// `optimizer-<step>.safetensors`), then `info` with those names and the step as
 /// `checkpoint.json`, then removes the files of other steps.
-fn write_checkpoint(
+pub(crate) fn write_checkpoint(
     dir: &Path,
     var_store: &nn::VarStore,
     mut info: CheckpointInfo,
@@ -366,7 +187,7 @@ pub(crate) fn read_tensors(
 
 /// Loads every variable of `var_store` from `path`, which must hold exactly those names and
 /// shapes.
-fn load_exact(var_store: &mut nn::VarStore, path: &Path) -> Result<(), ModelError> {
+pub(crate) fn load_exact(var_store: &mut nn::VarStore, path: &Path) -> Result<(), ModelError> {
     let mut saved = read_tensors(path, var_store.device())?;
     for (name, mut variable) in named_variables(var_store) {
         let tensor = saved
@@ -381,6 +202,13 @@ fn load_exact(var_store: &mut nn::VarStore, path: &Path) -> Result<(), ModelErro
         ));
     }
     Ok(())
+}
+
+/// Restores Adam's state from the `.safetensors` file at `path`, on `device`.
+pub(crate) fn restore_adam(adam: &mut Adam, path: &Path, device: Device) -> Result<(), ModelError> {
+    let saved = read_tensors(path, device)?;
+    adam.load_state(saved)
+        .map_err(|reason| ModelError::checkpoint(path, reason))
 }
 
 /// Copies `source` into `target` after checking the shape.

@@ -1,8 +1,20 @@
 //! The network's input: a square RGB crop around an object's mask, background set to 0.
+use serde::{Deserialize, Serialize};
 use tch::Tensor;
 
 use crate::ModelError;
-use crate::translation::CropBox;
+
+/// The square a crop was cut from ([`crate::crop_box`]), in continuous image coordinates where
+/// pixel `(i, j)` covers `[i, i + 1) × [j, j + 1)`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CropBox {
+    /// Centre `x`, pixels.
+    pub centre_x: f64,
+    /// Centre `y`, pixels.
+    pub centre_y: f64,
+    /// Side, pixels.
+    pub side: f64,
+}
 
 /// How a crop is cut out of an image.
 #[derive(Debug, Clone, Copy, PartialEq)]

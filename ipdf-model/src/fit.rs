@@ -1,22 +1,21 @@
-//! Training over epochs from images held in memory, with per-epoch validation LLH,
-//! checkpoints and `train_log.csv`, resumable.
+//! Training over epochs, shared by the rotation and translation models: each epoch a seeded
+//! permutation of the examples, batches from it, the validation LLH, a checkpoint and
+//! `train_log.csv`, all resumable.
 use std::path::Path;
 use std::time::Instant;
 
-use nalgebra::UnitQuaternion;
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
-use so3_grid::locate;
 use tch::{Kind, Tensor};
 
+use crate::ModelError;
 use crate::checkpoint::write_text_atomically;
-use crate::loss::check_label_sets;
-use crate::train::{StepReport, Trainer};
-use crate::{ImplicitPdf, ModelError, Predictor};
+use crate::step::StepReport;
 
-/// What [`fit`] trains: a trainer ([`Trainer`], [`crate::TranslationTrainer`]) and the kind of
-/// labelled data it takes batches of.
+/// What [`fit`] trains: a trainer ([`crate::rotation::Trainer`],
+/// [`crate::translation::TranslationTrainer`]) and the kind of labelled data it takes batches
+/// of.
 pub trait FitTarget {
     /// Training and validation data.
     type Data;
@@ -32,97 +31,16 @@ pub trait FitTarget {
         data: &Self::Data,
         indices: &[usize],
     ) -> Result<StepReport, ModelError>;
-    /// The mean log-likelihood of `data`'s labels under the model (see [`validation_llh`]).
+    /// The mean log-likelihood of `data`'s labels under the model (see
+    /// [`crate::rotation::validation_llh`]).
     fn validation_llh(&self, data: &Self::Data, options: &FitOptions) -> Result<f64, ModelError>;
     /// Writes the checkpoint.
     fn save_to(&self, dir: &Path) -> Result<(), ModelError>;
 }
 
-impl FitTarget for Trainer {
-    type Data = LabelledImages;
-
-    fn examples(data: &LabelledImages) -> usize {
-        data.len()
-    }
-
-    fn steps_done(&self) -> u64 {
-        self.step()
-    }
-
-    fn seed(&self) -> u64 {
-        self.options().seed
-    }
-
-    fn train_batch(
-        &mut self,
-        data: &LabelledImages,
-        indices: &[usize],
-    ) -> Result<StepReport, ModelError> {
-        let (images, sets) = data.batch(indices);
-        self.train_step(&images, &sets)
-    }
-
-    /// On the dense `options.validation_level` grid.
-    fn validation_llh(
-        &self,
-        data: &LabelledImages,
-        options: &FitOptions,
-    ) -> Result<f64, ModelError> {
-        validation_llh(self.model(), data, options.validation_level)
-    }
-
-    fn save_to(&self, dir: &Path) -> Result<(), ModelError> {
-        self.save(dir)
-    }
-}
-
 /// The name of the training log in a run folder.
 pub const TRAIN_LOG: &str = "train_log.csv";
 const LOG_HEADER: &str = "epoch,step,loss,learning_rate,validation_llh,seconds,images_per_second";
-
-/// Crops and their label sets.
-#[derive(Debug)]
-pub struct LabelledImages {
-    images: Tensor,
-    label_sets: Vec<Vec<UnitQuaternion<f64>>>,
-}
-
-impl LabelledImages {
-    /// `images`: `[N, 3, S, S]`, float in `[0, 1]` or 8-bit (`Kind::Uint8`, 0–255, a quarter of
-    /// the memory); one non-empty label set per image.
-    pub fn new(
-        images: Tensor,
-        label_sets: Vec<Vec<UnitQuaternion<f64>>>,
-    ) -> Result<Self, ModelError> {
-        let count = check_image_stack(&images)?;
-        check_label_sets(&label_sets, count)?;
-        Ok(Self { images, label_sets })
-    }
-
-    /// The number of images.
-    pub fn len(&self) -> usize {
-        self.label_sets.len()
-    }
-
-    /// Whether there are no images (never true: [`LabelledImages::new`] refuses that).
-    pub fn is_empty(&self) -> bool {
-        self.label_sets.is_empty()
-    }
-
-    /// The label sets.
-    pub fn label_sets(&self) -> &[Vec<UnitQuaternion<f64>>] {
-        &self.label_sets
-    }
-
-    /// The images at `indices` as floats in `[0, 1]`, with their label sets.
-    pub fn batch(&self, indices: &[usize]) -> (Tensor, Vec<Vec<UnitQuaternion<f64>>>) {
-        let sets = indices
-            .iter()
-            .map(|&i| self.label_sets[i].clone())
-            .collect();
-        (select_images(&self.images, indices), sets)
-    }
-}
 
 /// Checks that `images` is a stack `[N ≥ 1, 3, S, S]` of training crops; returns `N`.
 pub(crate) fn check_image_stack(images: &Tensor) -> Result<usize, ModelError> {
@@ -181,10 +99,10 @@ pub struct EpochReport {
 }
 
 /// Trains until `options.epochs` epochs are done, from wherever `trainer` is (a trainer from
-/// [`Trainer::resume`] continues). Each epoch draws a permutation of the images (seeded by the
-/// trainer's seed and the epoch), takes `steps_per_epoch` batches from it, then evaluates the
-/// validation LLH, saves a checkpoint into `run_dir` and rewrites `run_dir/train_log.csv`
-/// (both atomically). `on_step` sees every step (for progress bars).
+/// [`crate::rotation::Trainer::resume`] continues). Each epoch draws a permutation of the
+/// images (seeded by the trainer's seed and the epoch), takes `steps_per_epoch` batches from
+/// it, then evaluates the validation LLH, saves a checkpoint into `run_dir` and rewrites
+/// `run_dir/train_log.csv` (both atomically). `on_step` sees every step (for progress bars).
 pub fn fit<T: FitTarget>(
     trainer: &mut T,
     train: &T::Data,
@@ -241,31 +159,6 @@ pub fn fit<T: FitTarget>(
         reports.push(report);
     }
     Ok(reports)
-}
-
-/// The mean over images of the mean over each image's label set of `ln p(R | I)` on the dense
-/// `level` grid (the LLH of Murphy et al. 2021 on that grid; `−ln π² ≈ −2.29` for a uniform
-/// density).
-pub fn validation_llh(
-    model: &ImplicitPdf,
-    data: &LabelledImages,
-    level: u8,
-) -> Result<f64, ModelError> {
-    let mut predictor = Predictor::new(model);
-    let cells = so3_grid::cell_count(level) as f64;
-    let log_volume = (cells / std::f64::consts::PI.powi(2)).ln();
-    let mut total = 0.0;
-    for image in 0..data.len() {
-        let (crop, sets) = data.batch(&[image]);
-        let masses = predictor.probabilities(&crop, level)?;
-        let set = &sets[0];
-        let mut sum = 0.0;
-        for rotation in set {
-            sum += masses[locate(level, rotation)? as usize].ln() + log_volume;
-        }
-        total += sum / set.len() as f64;
-    }
-    Ok(total / data.len() as f64)
 }
 
 fn log_line(report: &EpochReport) -> String {

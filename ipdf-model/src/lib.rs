@@ -1,33 +1,26 @@
-//! Implicit-PDF (Murphy et al., ICML 2021) on libtorch through `tch`: an image-conditioned,
-//! unnormalised log-density `F(R, I)` over SO(3), trained on *sets* of rotation labels so that
-//! it learns every orientation an object is indistinguishable under.
+//! Implicit-PDF (Murphy et al., ICML 2021) on libtorch through `tch`: image-conditioned,
+//! unnormalised log-densities trained on *sets* of labels, so that a model learns every pose an
+//! object is indistinguishable under.
 //!
-//! - [`ImplicitPdf`]: an image encoder ([`EncoderKind`]: ResNet-18, ResNet-18 cut after stage
-//!   3, ConvNeXt-Tiny, a small CNN; torchvision parameter names, [`load_backbone`] reads
-//!   pretrained `.safetensors`), the positional encoding of the rotation query
-//!   ([`encode_rotations`]) and the IPDF head. The image term is computed once per image and
-//!   broadcast over all queries.
-//! - [`Trainer`]: one step = a query set ([`QuerySampling`]: a rotated level-2 grid or uniform
-//!   rotations) moved so that it holds a label exactly, a softmax over the queries, and the
-//!   negative log-likelihood of the label set ([`LabelLoss`], [`set_nll`]) as a true density
-//!   (cell volume `π² / N`). Adam with warm-up and cosine decay, gradient clipping, occlusion
-//!   and colour augmentation ([`Augmentation`]); seeded. [`fit`] adds epochs, validation LLH,
-//!   `train_log.csv` and checkpoints (`.safetensors` + JSON, atomic, resumable).
-//! - [`Predictor`]: the normalised distribution on a grid level (chunked), hierarchical
-//!   refinement ([`refine`]: level 2, then best-first only the cells holding the mass, within a
-//!   query budget), `ln p(R | I)` at any rotation ([`Predictor::log_densities`], the
-//!   reference's log-likelihood), a bfloat16 head for speed ([`Precision`]), and the most
-//!   likely rotation by gradient ascent ([`Predictor::argmax`]).
-//! - The translation half of a pose: [`TranslationPdf`] `F(t, I)` over the object's
-//!   translation in the camera frame (mm), conditioned on the crop and where it was cut
-//!   ([`CropGeometry`]: the crop's box and the camera intrinsics), queries in the crop's own
-//!   coordinates, Fourier-encoded; a [`WorkingVolume`] set from the training labels, stored in the
-//!   checkpoint, with an octree refined best-first as the rotation grid is ([`refine_on`] takes
-//!   any [`CellHierarchy`]); [`TranslationTrainer`] (label sets, importance-sampled normaliser),
-//!   [`TranslationPredictor`] (distribution, `ln p(t | I)`, argmax).
+//! Two halves of the same shape, each with its model, training, training data and prediction:
+//! - [`rotation`]: `F(R, I)` over SO(3) ([`rotation::ImplicitPdf`], [`rotation::Trainer`],
+//!   [`rotation::Predictor`]);
+//! - [`translation`]: `F(t, I)` over the object's translation in the camera frame (mm),
+//!   conditioned on the crop and where it was cut ([`translation::TranslationPdf`],
+//!   [`translation::TranslationTrainer`], [`translation::TranslationPredictor`]).
+//!
+//! What both share lives at the root: the network's configuration ([`ModelConfig`]: encoders
+//! with torchvision names — ResNet-18, ResNet-18 cut after stage 3, ConvNeXt-Tiny, a small CNN —
+//! and [`load_backbone`] for pretrained `.safetensors`), crops ([`crop_object`], [`CropBox`]),
+//! augmentation, the optimiser ([`LearningRateSchedule`], [`StepReport`]), the epoch loop
+//! ([`fit`]: validation LLH, `train_log.csv`, checkpoints that resume), checkpoints
+//! ([`CheckpointInfo`]: `.safetensors` + JSON, atomic), best-first refinement of a cell
+//! hierarchy ([`refine`], [`refine_on`]: the SO(3) grid and the translation octree), and the CPU
+//! kernel settings that make runs reproducible ([`REPRODUCIBLE_CPU_KERNELS`]).
 //!
 //! ```
-//! use ipdf_model::{ImplicitPdf, ModelConfig, Predictor, RefineOptions, TrainOptions, Trainer};
+//! use ipdf_model::rotation::{ImplicitPdf, Predictor, TrainOptions, Trainer};
+//! use ipdf_model::{ModelConfig, RefineOptions};
 //! use nalgebra::UnitQuaternion;
 //! use tch::{Device, Kind, Tensor};
 //!
@@ -55,9 +48,10 @@
 //! Translations: crops with where they were cut, labels in mm.
 //!
 //! ```
-//! use ipdf_model::{
-//!     CameraIntrinsics, CropBox, CropGeometry, TranslationConfig, TranslationPdf,
-//!     TranslationPredictor, TranslationSpace, TranslationTrainOptions, TranslationTrainer,
+//! use ipdf_model::CropBox;
+//! use ipdf_model::translation::{
+//!     CameraIntrinsics, CropGeometry, TranslationConfig, TranslationPdf, TranslationPredictor,
+//!     TranslationSpace, TranslationTrainOptions, TranslationTrainer,
 //! };
 //! use nalgebra::Vector3;
 //! use tch::{Device, Kind, Tensor};
@@ -84,6 +78,7 @@
 //! ```
 mod augment;
 mod checkpoint;
+mod config;
 mod crop;
 mod cuda;
 mod encoder;
@@ -91,37 +86,27 @@ mod encoding;
 mod error;
 mod fit;
 mod head;
-mod image_input;
 mod kernels;
 mod layers;
 mod loss;
-mod model;
+mod network;
 mod optim;
-mod predict;
 mod pretrained;
 mod refine;
-mod train;
-mod translation;
+pub mod rotation;
+mod step;
+pub mod translation;
 
 pub use augment::{Augmentation, augment};
 pub use checkpoint::{CHECKPOINT_FILE, CheckpointInfo};
-pub use crop::{CropOptions, crop_box, crop_object, crops_to_tensor};
+pub use config::ModelConfig;
+pub use crop::{CropBox, CropOptions, crop_box, crop_object, crops_to_tensor};
 pub use cuda::{default_device, load_cuda_backend};
 pub use encoder::EncoderKind;
-pub use encoding::{encode_rotations, encoded_len, rotations_to_tensor};
 pub use error::ModelError;
-pub use fit::{EpochReport, FitOptions, FitTarget, LabelledImages, TRAIN_LOG, fit, validation_llh};
+pub use fit::{EpochReport, FitOptions, FitTarget, TRAIN_LOG, fit};
 pub use kernels::{REPRODUCIBLE_CPU_KERNELS, kernel_settings, missing_kernel_settings};
-pub use loss::{LabelLoss, QuerySampling, label_set_from_matrices, set_nll};
-pub use model::{ImplicitPdf, ModelConfig};
 pub use optim::LearningRateSchedule;
-pub use predict::{Argmax, ArgmaxOptions, Precision, Predictor, UNDER_RESOLUTION_LIMIT};
 pub use pretrained::{load_backbone, load_translation_backbone};
 pub use refine::{CellHierarchy, CellMasses, RefineOptions, So3Cells, refine, refine_on};
-pub use train::{StepReport, TrainOptions, Trainer};
-pub use translation::{
-    CROP_VOLUME_SPAN, CameraIntrinsics, CropBox, CropGeometry, CropTerms, LabelledTranslations,
-    MAX_OCTREE_LEVEL, TranslationArgmax, TranslationArgmaxOptions, TranslationConfig,
-    TranslationPdf, TranslationPredictor, TranslationSpace, TranslationTrainOptions,
-    TranslationTrainer, WorkingVolume, translation_validation_llh, translations_to_tensor,
-};
+pub use step::StepReport;

@@ -4,7 +4,9 @@ use std::path::Path;
 use tch::nn;
 
 use crate::checkpoint::{copy_checked, read_tensors};
-use crate::{EncoderKind, ImplicitPdf, ModelError, TranslationPdf};
+use crate::rotation::ImplicitPdf;
+use crate::translation::TranslationPdf;
+use crate::{EncoderKind, ModelError};
 
 /// Loads the encoder's weights (and batch-norm statistics) from `path`, a `.safetensors` file
 /// of a torchvision model's `state_dict` (e.g. `resnet18` or `convnext_tiny`; names such as

@@ -1,10 +1,10 @@
 //! Checkpoints, resuming, pretrained backbones and bad input, through the public API.
 use std::path::Path;
 
+use ipdf_model::rotation::{ImplicitPdf, LabelledImages, QuerySampling, TrainOptions, Trainer};
 use ipdf_model::{
-    Augmentation, CHECKPOINT_FILE, CheckpointInfo, EncoderKind, FitOptions, ImplicitPdf,
-    LabelledImages, ModelConfig, ModelError, QuerySampling, TRAIN_LOG, TrainOptions, Trainer, fit,
-    load_backbone,
+    Augmentation, CHECKPOINT_FILE, CheckpointInfo, EncoderKind, FitOptions, ModelConfig,
+    ModelError, TRAIN_LOG, fit, load_backbone,
 };
 use nalgebra::UnitQuaternion;
 use tch::{Device, Kind, Tensor};

@@ -3,11 +3,11 @@
 //! rendering pose, it does not.
 mod common;
 
-use ipdf_model::{
-    ArgmaxOptions, Augmentation, ImplicitPdf, LabelLoss, LabelledImages, LearningRateSchedule,
-    ModelConfig, Precision, Predictor, QuerySampling, RefineOptions, TrainOptions, Trainer,
-    UNDER_RESOLUTION_LIMIT,
+use ipdf_model::rotation::{
+    ArgmaxOptions, ImplicitPdf, LabelLoss, LabelledImages, Precision, Predictor, QuerySampling,
+    TrainOptions, Trainer, UNDER_RESOLUTION_LIMIT,
 };
+use ipdf_model::{Augmentation, LearningRateSchedule, ModelConfig, RefineOptions};
 use metrics::{
     Distribution, GridCell, RECALL_THRESHOLD, llh, maad, nearest_distances, recall_maad,
 };

@@ -1,8 +1,8 @@
 //! The model's shapes, gradients, distributions and refinement, through the public API.
-use ipdf_model::{
-    ArgmaxOptions, EncoderKind, ImplicitPdf, ModelConfig, Precision, Predictor, RefineOptions,
-    TrainOptions, Trainer, refine, set_nll,
+use ipdf_model::rotation::{
+    ArgmaxOptions, ImplicitPdf, Precision, Predictor, TrainOptions, Trainer, set_nll,
 };
+use ipdf_model::{EncoderKind, ModelConfig, RefineOptions, refine};
 use nalgebra::UnitQuaternion;
 use proptest::prelude::*;
 use rand::SeedableRng;
@@ -36,8 +36,10 @@ fn every_encoder_gives_one_score_per_query() {
         assert_eq!(image_term.size(), [2, 16], "{encoder}");
         let first_layer = model.var_store().variables()["head.image.weight"].size();
         assert_eq!(first_layer, [16, features], "{encoder}");
-        let rotations =
-            ipdf_model::rotations_to_tensor(&Grid::new(0).unwrap().rotations(), Device::Cpu);
+        let rotations = ipdf_model::rotation::rotations_to_tensor(
+            &Grid::new(0).unwrap().rotations(),
+            Device::Cpu,
+        );
         let scores = model.scores(&image_term.unsqueeze(1), &model.query_term(&rotations));
         assert_eq!(scores.size(), [2, 72], "{encoder}");
         assert!(f64::try_from(scores.isfinite().all().to_kind(Kind::Double)).unwrap() == 1.0);
@@ -65,7 +67,7 @@ fn loss_gradient_matches_finite_differences() {
     let mut model = ImplicitPdf::new(config, Device::Cpu).unwrap();
     model.var_store_mut().double();
     let options = TrainOptions {
-        queries: ipdf_model::QuerySampling::Uniform { count: 64 },
+        queries: ipdf_model::rotation::QuerySampling::Uniform { count: 64 },
         ..TrainOptions::default()
     };
     let trainer = Trainer::new(model, options).unwrap();

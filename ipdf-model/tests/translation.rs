@@ -5,12 +5,15 @@ mod common;
 
 use common::render_cube;
 use depth_render::{PinholeCamera, Primitive, Scene};
+use ipdf_model::rotation::ImplicitPdf;
+use ipdf_model::translation::{
+    CameraIntrinsics, CropGeometry, LabelledTranslations, TranslationArgmaxOptions,
+    TranslationConfig, TranslationPdf, TranslationPredictor, TranslationSpace,
+    TranslationTrainOptions, TranslationTrainer, WorkingVolume,
+};
 use ipdf_model::{
-    CHECKPOINT_FILE, CameraIntrinsics, CellHierarchy, CheckpointInfo, CropGeometry, CropOptions,
-    FitOptions, ImplicitPdf, LabelledTranslations, ModelError, RefineOptions,
-    TranslationArgmaxOptions, TranslationConfig, TranslationPdf, TranslationPredictor,
-    TranslationSpace, TranslationTrainOptions, TranslationTrainer, WorkingVolume, crop_box,
-    crop_object, crops_to_tensor, fit, refine_on,
+    CHECKPOINT_FILE, CellHierarchy, CheckpointInfo, CropOptions, FitOptions, ModelError,
+    RefineOptions, crop_box, crop_object, crops_to_tensor, fit, refine_on,
 };
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use proptest::prelude::*;
@@ -281,7 +284,7 @@ proptest! {
         }
         // No wider than the span's square at the farthest depth plus how far its edges' rays
         // move between the nearest and farthest depth: narrow wherever the crop is.
-        let half = 0.5 * ipdf_model::CROP_VOLUME_SPAN * side;
+        let half = 0.5 * ipdf_model::translation::CROP_VOLUME_SPAN * side;
         let slope = ((centre_x - half - cx - 0.5).abs()).max((centre_x + half - cx - 0.5).abs()) / 600.0;
         let width = 2.0 * half * 1300.0 / 600.0;
         let extent = crop_volume.extent().x;

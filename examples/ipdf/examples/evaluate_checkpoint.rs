@@ -8,9 +8,10 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use indicatif::ProgressBar;
-use ipdf::evaluation::evaluate;
+use ipdf::eval::rotation::evaluate;
 use ipdf::training_data::rendered_examples;
-use ipdf_model::{ImplicitPdf, RefineOptions};
+use ipdf_model::RefineOptions;
+use ipdf_model::rotation::ImplicitPdf;
 use synth_data::{ObjectKind, SynthObject};
 
 fn main() -> Result<()> {

@@ -11,10 +11,11 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Result;
-use ipdf::evaluation::cell_distribution;
+use ipdf::eval::rotation::cell_distribution;
 use ipdf::run_info::{RUN_FILE, RunInfo};
 use ipdf::training_data::{ExampleOptions, load_examples, to_unit_floats};
-use ipdf_model::{ImplicitPdf, Predictor, RefineOptions};
+use ipdf_model::RefineOptions;
+use ipdf_model::rotation::{ImplicitPdf, Predictor};
 use metrics::maad;
 
 fn main() -> Result<()> {

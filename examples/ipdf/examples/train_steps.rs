@@ -8,7 +8,8 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use ipdf::training_data::{rendered_examples, to_unit_floats};
-use ipdf_model::{ImplicitPdf, ModelConfig, QuerySampling, TrainOptions, Trainer};
+use ipdf_model::ModelConfig;
+use ipdf_model::rotation::{ImplicitPdf, QuerySampling, TrainOptions, Trainer};
 use synth_data::{ObjectKind, SynthObject};
 
 /// Side of the crops.

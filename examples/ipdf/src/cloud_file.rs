@@ -6,7 +6,7 @@ use std::path::Path;
 use bop_dataset::write_atomically;
 use registration::PointCloud;
 
-use crate::PipelineError;
+use crate::Error;
 
 /// Points sampled on a mesh's surface: at least this many, and at least its vertices.
 pub const MESH_SAMPLES: usize = 20_000;
@@ -15,7 +15,7 @@ pub const MESH_SAMPLES: usize = 20_000;
 /// millimetres): a file with faces as [`MESH_SAMPLES`] points sampled uniformly on its surface
 /// with their faces' normals (seed 0), else its vertices (and normals, when every vertex has
 /// one).
-pub fn read_cloud(path: &Path, scale: f64) -> Result<PointCloud, PipelineError> {
+pub fn read_cloud(path: &Path, scale: f64) -> Result<PointCloud, Error> {
     match depth_render::load_mesh(path, scale) {
         Ok(loaded) => {
             let mesh = loaded.mesh;
@@ -36,7 +36,7 @@ pub fn read_cloud(path: &Path, scale: f64) -> Result<PointCloud, PipelineError> 
 
 /// Writes `cloud` as a binary little-endian PLY (float `x y z`, and `nx ny nz` when it has
 /// normals), atomically.
-pub fn write_cloud(path: &Path, cloud: &PointCloud) -> Result<(), PipelineError> {
+pub fn write_cloud(path: &Path, cloud: &PointCloud) -> Result<(), Error> {
     write_atomically(path, |out| {
         depth_render::write_ply(out, cloud.points(), cloud.normals(), &[], 1.0)
     })?;

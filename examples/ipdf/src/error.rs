@@ -1,10 +1,11 @@
-//! The error of training data, evaluation and figures.
+//! The error of the `ipdf` library: training data, training, evaluation, the pipeline and
+//! figures.
 use bop_dataset::FileError;
 
-/// Why a stage of the `ipdf` pipeline could not run.
+/// Why a function of the `ipdf` library (a stage of the pipeline, a command) could not run.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
-pub enum PipelineError {
+pub enum Error {
     /// A file that cannot be read or written, or whose content is invalid.
     #[error(transparent)]
     File(#[from] FileError),
@@ -39,8 +40,8 @@ pub enum PipelineError {
     },
 }
 
-impl PipelineError {
-    /// A [`PipelineError::InvalidOption`].
+impl Error {
+    /// A [`Error::InvalidOption`].
     pub fn option(name: &'static str, reason: impl Into<String>) -> Self {
         Self::InvalidOption {
             name,

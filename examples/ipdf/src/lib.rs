@@ -1,9 +1,9 @@
 //! The `ipdf` command line's library, for programs of your own: training data from BOP datasets
-//! ([`training_data`]), training runs ([`training`]), scores of Implicit-PDF models
-//! ([`evaluation`]) and of translation models and 6D poses ([`translation_eval`]), the record of a training run ([`run_info`]), the whole pipeline of
-//! `ipdf pipeline` ([`pipeline`]), figures ([`plots`]), `.npy` output ([`npy`]), point-cloud
-//! files ([`cloud_file`]), progress bars and the process allocator. Datasets, synthetic data and
-//! labelling are crates of their own (`bop-dataset`, `synth-data`, `pseudo-label`, none of which
+//! ([`training_data`]), training runs ([`training`]), scores of rotation models, translation
+//! models and 6D poses side by side ([`eval`]), the record of a training run ([`run_info`]),
+//! the whole pipeline of `ipdf pipeline` ([`pipeline`]), figures ([`plots`]), `.npy` output
+//! ([`npy`]), point-cloud files ([`cloud_file`]), progress bars and the process allocator.
+//! Datasets, synthetic data and labelling are crates of their own (`bop-dataset`, `synth-data`, `pseudo-label`, none of which
 //! links libtorch); the commands live in `src/commands/` and map flags onto these functions.
 //!
 //! ```
@@ -20,12 +20,12 @@
 //!            1,50,3.1,4e-3,-1.2,30,26\n2,100,2.2,2e-3,0.7,30,26\n";
 //! let figure = plot_training_curves(log, "train_log.csv".as_ref())?;
 //! assert_eq!(figure.dimensions(), (1200, 480));
-//! # Ok::<(), ipdf::PipelineError>(())
+//! # Ok::<(), ipdf::Error>(())
 //! ```
 pub mod allocator;
 pub mod cloud_file;
 mod error;
-pub mod evaluation;
+pub mod eval;
 pub mod npy;
 pub mod pipeline;
 pub mod plots;
@@ -33,6 +33,5 @@ pub mod progress;
 pub mod run_info;
 pub mod training;
 pub mod training_data;
-pub mod translation_eval;
 
-pub use error::PipelineError;
+pub use error::Error;

@@ -6,15 +6,18 @@ use std::path::{Path, PathBuf};
 
 use bop_dataset::BopDataset;
 use indicatif::ProgressBar;
+use ipdf_model::rotation::{ImplicitPdf, LabelledImages, QuerySampling, TrainOptions, Trainer};
+use ipdf_model::translation::{
+    LabelledTranslations, TranslationConfig, TranslationPdf, TranslationSpace,
+    TranslationTrainOptions, TranslationTrainer,
+};
 use ipdf_model::{
-    Augmentation, CHECKPOINT_FILE, EpochReport, FitOptions, FitTarget, ImplicitPdf, LabelledImages,
-    LabelledTranslations, LearningRateSchedule, ModelConfig, QuerySampling, TrainOptions, Trainer,
-    TranslationConfig, TranslationPdf, TranslationSpace, TranslationTrainOptions,
-    TranslationTrainer, default_device, fit, load_backbone, load_translation_backbone,
+    Augmentation, CHECKPOINT_FILE, EpochReport, FitOptions, FitTarget, LearningRateSchedule,
+    ModelConfig, default_device, fit, load_backbone, load_translation_backbone,
 };
 use serde::{Deserialize, Serialize};
 
-use crate::PipelineError;
+use crate::Error;
 use crate::run_info::RunInfo;
 use crate::training_data::{ExampleOptions, Examples, LabelSource, choose_object, load_examples};
 
@@ -153,10 +156,7 @@ pub struct TrainResult {
 /// Trains (or resumes) the run of `request` (a rotation or a translation model; see
 /// [`Target::Pose`] for both); `progress` advances by one per step. A run folder holding a run
 /// of other data, another target or another network is refused.
-pub fn train_model(
-    request: &TrainRequest,
-    progress: &ProgressBar,
-) -> Result<TrainResult, PipelineError> {
+pub fn train_model(request: &TrainRequest, progress: &ProgressBar) -> Result<TrainResult, Error> {
     request.model.validate()?;
     let dataset = BopDataset::open(&request.dataset, &request.models_dir)?;
     let (obj_id, object) = choose_object(&dataset, request.obj_id, request.object_name.as_deref())?;
@@ -213,7 +213,7 @@ pub fn train_model(
             (trainer.step(), reports)
         }
         Target::Pose => {
-            return Err(PipelineError::option(
+            return Err(Error::option(
                 "target",
                 "a pose is two runs: train the rotation and the translation target",
             ));
@@ -251,7 +251,7 @@ fn fit_run<T: FitTarget>(
     validation: Option<&T::Data>,
     request: &TrainRequest,
     progress: &ProgressBar,
-) -> Result<Vec<EpochReport>, PipelineError> {
+) -> Result<Vec<EpochReport>, Error> {
     let options = FitOptions {
         epochs: request.epochs,
         steps_per_epoch: request.steps_per_epoch,
@@ -271,7 +271,7 @@ fn fit_run<T: FitTarget>(
 }
 
 /// Whether the run folder `out` holds a finished run of `total_steps` steps.
-pub fn is_trained(out: &Path, total_steps: u64) -> Result<bool, PipelineError> {
+pub fn is_trained(out: &Path, total_steps: u64) -> Result<bool, Error> {
     Ok(out.join(CHECKPOINT_FILE).exists()
         && ipdf_model::CheckpointInfo::read(out)?.step >= total_steps)
 }
@@ -283,7 +283,7 @@ fn validation_examples(
     dataset: &BopDataset,
     request: &TrainRequest,
     examples: &impl Fn(&str, LabelSource) -> ExampleOptions,
-) -> Result<Option<Examples>, PipelineError> {
+) -> Result<Option<Examples>, Error> {
     if !dataset.root.join(&request.val_split).is_dir() {
         return Ok(None);
     }
@@ -304,7 +304,7 @@ fn validation_examples(
 
 /// The trainer of a run folder holding a checkpoint of this run, or of a new run (recorded in
 /// `run.json`).
-fn open_trainer(request: &TrainRequest, info: &RunInfo) -> Result<Trainer, PipelineError> {
+fn open_trainer(request: &TrainRequest, info: &RunInfo) -> Result<Trainer, Error> {
     let device = default_device();
     let out = &request.out;
     if resumes(out, info)? {
@@ -335,13 +335,13 @@ fn open_trainer(request: &TrainRequest, info: &RunInfo) -> Result<Trainer, Pipel
 
 /// Whether `out` holds a checkpoint of the run `info` describes (then it resumes); an error
 /// when it holds one of another run.
-fn resumes(out: &Path, info: &RunInfo) -> Result<bool, PipelineError> {
+fn resumes(out: &Path, info: &RunInfo) -> Result<bool, Error> {
     if !out.join(CHECKPOINT_FILE).exists() {
         return Ok(false);
     }
     let previous = RunInfo::read(out)?;
     if previous != *info {
-        return Err(PipelineError::option(
+        return Err(Error::option(
             "out",
             format!(
                 "{} holds a run of other data or options ({previous:?}); choose another --out",
@@ -353,7 +353,7 @@ fn resumes(out: &Path, info: &RunInfo) -> Result<bool, PipelineError> {
 }
 
 /// Creates the run folder `out` and its `run.json`.
-fn start_run(out: &Path, info: &RunInfo) -> Result<(), PipelineError> {
+fn start_run(out: &Path, info: &RunInfo) -> Result<(), Error> {
     std::fs::create_dir_all(out)
         .map_err(|e| bop_dataset::FileError::new(out, "folder", e.to_string()))?;
     info.write(out)?;
@@ -366,7 +366,7 @@ fn open_translation_trainer(
     request: &TrainRequest,
     info: &RunInfo,
     data: &LabelledTranslations,
-) -> Result<TranslationTrainer, PipelineError> {
+) -> Result<TranslationTrainer, Error> {
     let device = default_device();
     let out = &request.out;
     let network = request.model.clone();

@@ -8,7 +8,8 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use ipdf_model::{CameraIntrinsics, CropBox, CropGeometry, CropOptions, crop_box, crop_object};
+use ipdf_model::translation::{CameraIntrinsics, CropGeometry};
+use ipdf_model::{CropBox, CropOptions, crop_box, crop_object};
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 use tch::{Kind, Tensor};
@@ -19,7 +20,7 @@ use bop_dataset::{
 };
 use metrics::{CONTINUOUS_STEPS, SymmetryGroup};
 
-use crate::PipelineError;
+use crate::Error;
 
 /// Which rotations an instance is labelled with.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -125,10 +126,7 @@ struct Pending {
 /// The examples of `options.obj_id` in `options.split` of `dataset`. Pseudo labels missing
 /// from a scene are an error that says how to make them; instances whose labelling failed are
 /// left out, as are instances below the visible fraction.
-pub fn load_examples(
-    dataset: &BopDataset,
-    options: &ExampleOptions,
-) -> Result<Examples, PipelineError> {
+pub fn load_examples(dataset: &BopDataset, options: &ExampleOptions) -> Result<Examples, Error> {
     let models = read_models_info(&dataset.models_info_path())?;
     let group = models
         .get(&options.obj_id)
@@ -152,13 +150,13 @@ pub fn load_examples(
     );
     if pending.is_empty() {
         let reason = format!("no labelled instance of {place}");
-        return Err(PipelineError::option("dataset", reason));
+        return Err(Error::option("dataset", reason));
     }
     let (pending, crops): (Vec<Pending>, Vec<FileCrop>) =
         crop_instances(dataset, options, pending)?;
     if pending.is_empty() {
         let reason = format!("every instance of {place} has an empty visible mask");
-        return Err(PipelineError::option("dataset", reason));
+        return Err(Error::option("dataset", reason));
     }
     let size = options.input_size as i64;
     let geometry = pending
@@ -188,7 +186,7 @@ fn scene_instances(
     scene_id: u32,
     options: &ExampleOptions,
     group: &SymmetryGroup,
-) -> Result<Vec<Pending>, PipelineError> {
+) -> Result<Vec<Pending>, Error> {
     let scene = dataset.scene(&options.split, scene_id);
     let optional = |path: PathBuf| path.exists().then_some(path);
     let gt = optional(scene.gt_path())
@@ -309,7 +307,7 @@ fn crop_instances(
     dataset: &BopDataset,
     options: &ExampleOptions,
     pending: Vec<Pending>,
-) -> Result<(Vec<Pending>, Vec<FileCrop>), PipelineError> {
+) -> Result<(Vec<Pending>, Vec<FileCrop>), Error> {
     let crops: Vec<Option<FileCrop>> = pending
         .par_iter()
         .map(|p| {
@@ -324,7 +322,7 @@ fn crop_instances(
                 Err(CropError::Failed(error)) => Err(error),
             }
         })
-        .collect::<Result<_, PipelineError>>()?;
+        .collect::<Result<_, Error>>()?;
     Ok(pending
         .into_iter()
         .zip(crops)
@@ -338,7 +336,7 @@ pub fn choose_object(
     dataset: &BopDataset,
     obj_id: Option<u32>,
     name: Option<&str>,
-) -> Result<(u32, String), PipelineError> {
+) -> Result<(u32, String), Error> {
     let models = read_models_info(&dataset.models_info_path())?;
     let names = dataset
         .read_info()?
@@ -362,7 +360,7 @@ pub fn choose_object(
         .collect::<Vec<_>>()
         .join(", ");
     chosen.map(|id| (id, name_of(id))).ok_or_else(|| {
-        PipelineError::option(
+        Error::option(
             "obj_id",
             format!("choose one of the dataset's objects: {listing}"),
         )
@@ -377,10 +375,10 @@ pub enum CropError {
     EmptyMask(PathBuf),
     /// Unreadable images, mismatched sizes or a bad crop size.
     #[error(transparent)]
-    Failed(#[from] PipelineError),
+    Failed(#[from] Error),
 }
 
-impl From<CropError> for PipelineError {
+impl From<CropError> for Error {
     fn from(error: CropError) -> Self {
         match error {
             CropError::Failed(error) => error,
@@ -424,14 +422,14 @@ impl FileCrop {
 /// The 8-bit `[3, size, size]` crop (channel-major) of the colour image at `rgb` around the
 /// mask at `mask` (`ipdf_model::crop_object`), with its box.
 pub fn crop_files(rgb: &Path, mask: &Path, size: usize) -> Result<FileCrop, CropError> {
-    let colour = bop_dataset::read_rgb(rgb).map_err(PipelineError::from)?;
-    let visible = bop_dataset::read_mask(mask).map_err(PipelineError::from)?;
+    let colour = bop_dataset::read_rgb(rgb).map_err(Error::from)?;
+    let visible = bop_dataset::read_mask(mask).map_err(Error::from)?;
     if (visible.width, visible.height) != (colour.width, colour.height) {
         let reason = format!(
             "{}×{} but the colour image is {}×{}",
             visible.width, visible.height, colour.width, colour.height
         );
-        return Err(PipelineError::from(FileError::new(mask, "size", reason)).into());
+        return Err(Error::from(FileError::new(mask, "size", reason)).into());
     }
     crop_bytes(
         colour.pixels.as_flattened(),
@@ -442,7 +440,7 @@ pub fn crop_files(rgb: &Path, mask: &Path, size: usize) -> Result<FileCrop, Crop
     )
     .map_err(|error| match error {
         ipdf_model::ModelError::EmptyMask => CropError::EmptyMask(mask.to_path_buf()),
-        error => PipelineError::from(error).into(),
+        error => Error::from(error).into(),
     })
 }
 
@@ -486,7 +484,7 @@ pub fn rendered_examples(
     count: usize,
     size: usize,
     seed: u64,
-) -> Result<Examples, PipelineError> {
+) -> Result<Examples, Error> {
     use rand::SeedableRng;
     let renderer = synth_data::FrameRenderer::new(&object.mesh)?;
     let camera = synth_data::SynthOptions::t_less_camera().camera;

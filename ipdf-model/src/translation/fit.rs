@@ -8,8 +8,8 @@ use tch::Tensor;
 use super::model::check_translation_sets;
 use super::{CropGeometry, TranslationPdf, TranslationPredictor, TranslationTrainer};
 use crate::ModelError;
+use crate::StepReport;
 use crate::fit::{FitOptions, FitTarget, check_image_stack, select_images};
-use crate::train::StepReport;
 
 /// The cell size (mm) the validation LLH refines the octree to.
 const VALIDATION_CELL_MM: f64 = 2.0;

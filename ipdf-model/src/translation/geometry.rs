@@ -4,7 +4,7 @@ use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use tch::{Device, Kind, Tensor};
 
-use crate::ModelError;
+use crate::{CropBox, ModelError};
 
 /// Pinhole intrinsics in pixels, BOP / OpenCV convention: a camera-frame point `(x, y, z)`
 /// projects to `(fx·x/z + cx, fy·y/z + cy)` with pixel centres at integer coordinates.
@@ -18,18 +18,6 @@ pub struct CameraIntrinsics {
     pub cx: f64,
     /// Principal point `y`, pixels.
     pub cy: f64,
-}
-
-/// The square a crop was cut from ([`crate::crop_box`]), in continuous image coordinates where
-/// pixel `(i, j)` covers `[i, i + 1) × [j, j + 1)`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct CropBox {
-    /// Centre `x`, pixels.
-    pub centre_x: f64,
-    /// Centre `y`, pixels.
-    pub centre_y: f64,
-    /// Side, pixels.
-    pub side: f64,
 }
 
 /// A crop's box, the intrinsics of its camera, and the image size.

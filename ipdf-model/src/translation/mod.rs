@@ -3,8 +3,8 @@
 //!
 //! - [`WorkingVolume`]: the box of translations (mm) the density lives in, with an octree of
 //!   equal cells in Morton order for hierarchical evaluation ([`crate::refine_on`]).
-//! - [`CropGeometry`]: the crop's square in the image ([`crate::crop_box`]) and the camera's
-//!   intrinsics.
+//! - [`CropGeometry`]: the crop's square in the image ([`crate::CropBox`], from
+//!   [`crate::crop_box`]) and the camera's intrinsics.
 //! - [`TranslationPdf`]: `F(t, I)`; [`TranslationSpace`] (volume and query normalisation) is
 //!   set from the training labels and kept in its configuration.
 //! - [`TranslationTrainer`]: label sets of translations, each label in its own
@@ -12,6 +12,10 @@
 //! - [`TranslationPredictor`]: the distribution on the octree, `ln p(t | I)`, and the argmax.
 //! - [`LabelledTranslations`]: training data for [`crate::fit`], validated by
 //!   [`translation_validation_llh`].
+//!
+//! The same rooms as [`crate::rotation`]: `model`, `train`, `fit`, `predict`, `checkpoint`, and
+//! the translation's own `geometry` (crops in the camera) and `volume` (the octree).
+mod checkpoint;
 mod fit;
 mod geometry;
 mod model;
@@ -20,7 +24,7 @@ mod train;
 mod volume;
 
 pub use fit::{LabelledTranslations, translation_validation_llh};
-pub use geometry::{CameraIntrinsics, CropBox, CropGeometry, translations_to_tensor};
+pub use geometry::{CameraIntrinsics, CropGeometry, translations_to_tensor};
 pub use model::{CROP_VOLUME_SPAN, TranslationConfig, TranslationPdf, TranslationSpace};
 pub use predict::{CropTerms, TranslationArgmax, TranslationArgmaxOptions, TranslationPredictor};
 pub use train::{TranslationTrainOptions, TranslationTrainer};

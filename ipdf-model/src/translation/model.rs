@@ -7,9 +7,7 @@ use tch::{Device, Kind, Tensor, nn};
 use super::geometry::{FEATURES, crop_factors, crop_features, crop_relative};
 use super::{CropGeometry, WorkingVolume};
 use crate::encoding::encode_fourier;
-use crate::head::Head;
-use crate::image_input::ImageInput;
-use crate::layers::ParamInit;
+use crate::network::Network;
 use crate::{ModelConfig, ModelError};
 
 /// Where a translation model's density lives and how its queries are normalised; set from the
@@ -188,18 +186,13 @@ const fn encoded_len(components: i64) -> i64 {
 /// of its centre's ray and its scale); the query term sees `t` in the crop's own coordinates
 /// (see `crop_relative`), Fourier-encoded. Same head as the rotation model.
 pub struct TranslationPdf {
-    var_store: nn::VarStore,
+    network: Network,
     config: TranslationConfig,
-    images: ImageInput,
-    head: Head,
 }
 
 impl std::fmt::Debug for TranslationPdf {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("TranslationPdf")
-            .field("config", &self.config)
-            .field("device", &self.var_store.device())
-            .finish_non_exhaustive()
+        self.network.debug(f, "TranslationPdf", &self.config)
     }
 }
 
@@ -208,23 +201,9 @@ impl TranslationPdf {
     /// `config.network.seed`.
     pub fn new(config: TranslationConfig, device: Device) -> Result<Self, ModelError> {
         config.validate()?;
-        let var_store = nn::VarStore::new(device);
-        let mut init = ParamInit::new(config.network.seed);
-        let root = var_store.root();
-        let images = ImageInput::new(&root / "encoder", &config.network, &mut init, device);
-        let head = Head::new(
-            &root / "head",
-            images.feature_dim() + FEATURES,
-            encoded_len(config.network.fourier_components),
-            &config.network.head_sizes,
-            &mut init,
-        );
-        Ok(Self {
-            var_store,
-            config,
-            images,
-            head,
-        })
+        let query_len = encoded_len(config.network.fourier_components);
+        let network = Network::new(&config.network, FEATURES, query_len, device);
+        Ok(Self { network, config })
     }
 
     /// The configuration the model was built from.
@@ -239,22 +218,22 @@ impl TranslationPdf {
 
     /// The device holding the parameters.
     pub fn device(&self) -> Device {
-        self.var_store.device()
+        self.network.device()
     }
 
     /// The parameters' element kind.
     pub fn kind(&self) -> Kind {
-        self.head.kind()
+        self.network.kind()
     }
 
     /// The parameters (`encoder.` in torchvision names, `head.*`).
     pub fn var_store(&self) -> &nn::VarStore {
-        &self.var_store
+        self.network.var_store()
     }
 
     /// The parameters, mutably.
     pub fn var_store_mut(&mut self) -> &mut nn::VarStore {
-        &mut self.var_store
+        self.network.var_store_mut()
     }
 
     /// Checks crops `[B, 3, S, S]` and their geometry (one per crop, valid).
@@ -263,7 +242,7 @@ impl TranslationPdf {
         images: &Tensor,
         geometry: &[CropGeometry],
     ) -> Result<(), ModelError> {
-        self.images.check(images)?;
+        self.network.check_images(images)?;
         let batch = images.size()[0] as usize;
         if geometry.len() != batch {
             return Err(ModelError::CropGeometry {
@@ -287,7 +266,7 @@ impl TranslationPdf {
     ) -> Result<Tensor, ModelError> {
         self.check_inputs(images, geometry)?;
         let (kind, device) = (self.kind(), self.device());
-        let features = self.images.features(images, kind, device, train)?;
+        let features = self.network.features(images, train)?;
         let space = &self.config.space;
         let placement = crop_features(
             geometry,
@@ -297,7 +276,8 @@ impl TranslationPdf {
             kind,
         );
         Ok(self
-            .head
+            .network
+            .head()
             .image_term(&Tensor::cat(&[features, placement], 1)))
     }
 
@@ -316,7 +296,7 @@ impl TranslationPdf {
     /// `[…, 5]` (`[B, 1, 5]` with translations `[B, N, 3]`).
     pub fn query_term(&self, translations: &Tensor, factors: &Tensor) -> Tensor {
         let relative = crop_relative(&translations.to_kind(self.kind()), factors);
-        self.head.query_term(&encode_fourier(
+        self.network.head().query_term(&encode_fourier(
             &relative,
             self.config.network.fourier_components,
         ))
@@ -325,6 +305,6 @@ impl TranslationPdf {
     /// `F(t, I)` for broadcastable terms (image `[B, 1, H]` with queries `[B, N, H]` gives
     /// `[B, N]`).
     pub fn scores(&self, image_term: &Tensor, query_term: &Tensor) -> Tensor {
-        self.head.scores(image_term, query_term)
+        self.network.head().scores(image_term, query_term)
     }
 }

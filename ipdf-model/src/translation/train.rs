@@ -12,7 +12,7 @@ use crate::ModelError;
 use crate::augment::{Augmentation, augment};
 use crate::loss::set_nll_with;
 use crate::optim::{Adam, LearningRateSchedule};
-use crate::train::{StepReport, optimisation_step, validate_optimisation};
+use crate::step::{StepReport, optimisation_step, validate_optimisation};
 
 /// The spreads of the Gaussian proposals around the first label, as fractions of the reference
 /// crop extent `E` (for `E` = 100 mm: 2, 10 and 50 mm): the loss sees alternatives at the
@@ -20,7 +20,7 @@ use crate::train::{StepReport, optimisation_step, validate_optimisation};
 const PROPOSAL_SPREADS: [f64; 3] = [0.02, 0.1, 0.5];
 
 /// Options of the translation trainer; the learning-rate schedule, clipping and augmentation
-/// mean what they mean for rotations ([`crate::TrainOptions`]).
+/// mean what they mean for rotations ([`crate::rotation::TrainOptions`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TranslationTrainOptions {
     /// Adam's learning rate per step.
@@ -150,8 +150,8 @@ impl TranslationTrainer {
     /// volume. Each label's density is `exp F(t) / Z`, `Z` estimated by importance sampling
     /// from `queries − 1` translations drawn from a mixture of the uniform density on the volume
     /// and Gaussians around the first label (see `PROPOSAL_SPREADS`), the label itself counted
-    /// among them (see [`crate::set_nll`]). Draws queries (and augmentation when `train`) from
-    /// `rng`.
+    /// among them (see [`crate::rotation::set_nll`]). Draws queries (and augmentation when
+    /// `train`) from `rng`.
     pub fn loss(
         &self,
         images: &Tensor,

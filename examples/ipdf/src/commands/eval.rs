@@ -6,9 +6,9 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use bop_dataset::write_json;
-use ipdf::evaluation::{EvalRequest, evaluate_run, evaluate_translation_run};
+use ipdf::eval::translation::is_translation_run;
+use ipdf::eval::{EvalRequest, evaluate_run, evaluate_translation_run};
 use ipdf::progress::bar;
-use ipdf::translation_eval::is_translation_run;
 
 /// Arguments of `ipdf eval`.
 #[derive(Debug, clap::Args)]

@@ -7,14 +7,14 @@ use std::path::{Path, PathBuf};
 use super::check_extension;
 use anyhow::{Context, Result, bail};
 use bop_dataset::write_json;
-use ipdf::npy::write_f32;
-use ipdf::training_data::{FileCrop, crop_files, crop_tensor};
-use ipdf::translation_eval::{
+use ipdf::eval::translation::{
     self, is_translation_run, pose_translation_dir, pose_translation_model,
 };
-use ipdf_model::{
-    ArgmaxOptions, CropGeometry, ImplicitPdf, Predictor, TranslationPdf, default_device,
-};
+use ipdf::npy::write_f32;
+use ipdf::training_data::{FileCrop, crop_files, crop_tensor};
+use ipdf_model::default_device;
+use ipdf_model::rotation::{ArgmaxOptions, ImplicitPdf, Predictor};
+use ipdf_model::translation::{CropGeometry, TranslationPdf};
 use serde_json::{Value, json};
 use so3_grid::{Grid, rotation_to_matrix, rotation_to_wxyz};
 
@@ -170,7 +170,7 @@ fn predict_translation(
     args: &PredictArgs,
 ) -> Result<(Value, Value)> {
     let image = crop_tensor(&crop.pixels, model.config().network.input_size as usize);
-    let prediction = translation_eval::predict_translation(model, &image, geometry)?;
+    let prediction = translation::predict_translation(model, &image, geometry)?;
     let (centres, distribution) = (&prediction.centres, &prediction.distribution);
     let rows: Vec<f64> = centres
         .iter()

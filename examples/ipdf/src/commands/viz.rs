@@ -6,11 +6,12 @@ use std::path::PathBuf;
 use super::check_extension;
 use anyhow::{Result, bail};
 use bop_dataset::{BopDataset, read_models_info, read_scene_gt};
-use ipdf::evaluation::distribution_figure;
+use ipdf::eval::rotation::distribution_figure;
 use ipdf::plots::{plot_training_curves, write_png};
 use ipdf::run_info::RunInfo;
 use ipdf::training_data::crop_files;
-use ipdf_model::{ImplicitPdf, default_device};
+use ipdf_model::default_device;
+use ipdf_model::rotation::ImplicitPdf;
 use serde_json::json;
 
 /// Arguments of `ipdf viz`.

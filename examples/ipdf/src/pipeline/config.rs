@@ -9,7 +9,7 @@ use ipdf_model::EncoderKind;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
-use crate::PipelineError;
+use crate::Error;
 use crate::training::Target;
 
 /// A size of run.
@@ -238,7 +238,7 @@ fn flag_of(key: &str) -> String {
 /// does (the settings given on the command line first): `pipeline_config.json`, or for a
 /// folder from an older version without one, the `"config"` of its `report.json`. A folder with
 /// neither is a new run, and `config` is recorded.
-pub fn check_and_record(out: &Path, config: &PipelineConfig) -> Result<(), PipelineError> {
+pub fn check_and_record(out: &Path, config: &PipelineConfig) -> Result<(), Error> {
     let config_path = out.join(CONFIG_FILE);
     let report_path = out.join("report.json");
     let (path, recorded) = if config_path.exists() {
@@ -249,9 +249,9 @@ pub fn check_and_record(out: &Path, config: &PipelineConfig) -> Result<(), Pipel
         return Ok(write_json(&config_path, config)?);
     };
     let expected =
-        serde_json::to_value(config).map_err(|e| PipelineError::option("config", e.to_string()))?;
+        serde_json::to_value(config).map_err(|e| Error::option("config", e.to_string()))?;
     let (Some(recorded), Some(expected)) = (recorded.as_object(), expected.as_object()) else {
-        return Err(PipelineError::option(
+        return Err(Error::option(
             "config",
             format!("{}: not a JSON object", path.display()),
         ));
@@ -273,7 +273,7 @@ pub fn check_and_record(out: &Path, config: &PipelineConfig) -> Result<(), Pipel
             continue;
         };
         if found != value {
-            return Err(PipelineError::option(
+            return Err(Error::option(
                 "config",
                 format!(
                     "{}: {key}{}: the run in {} was made with {found}, this run asks for \

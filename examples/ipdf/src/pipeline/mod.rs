@@ -19,7 +19,9 @@ use bop_dataset::{
     BopDataset, read_json_as, read_models_info, read_scene_gt, write_atomically, write_json,
 };
 use depth_render::SensorPreset;
-use ipdf_model::{ImplicitPdf, ModelConfig, TRAIN_LOG, TranslationPdf, default_device};
+use ipdf_model::rotation::ImplicitPdf;
+use ipdf_model::translation::TranslationPdf;
+use ipdf_model::{ModelConfig, TRAIN_LOG, default_device};
 use pseudo_label::{DatasetOptions, LabelOptions, LabelReport, Shard, label_dataset};
 use serde::{Deserialize, Serialize};
 use synth_data::{ObjectKind, SynthObject, SynthOptions, Variant, synthesize};
@@ -28,8 +30,10 @@ pub use config::{CONFIG_FILE, PipelineConfig, Plan, Preset};
 pub use report::{FigureEntry, LabelAccuracy, ModelScores, Report, ScoreTable};
 pub use workers::on_threads;
 
-use crate::PipelineError;
-use crate::evaluation::{EvalRequest, EvalResult, distribution_figure, eval_file, evaluate_run};
+use crate::Error;
+use crate::eval::rotation::distribution_figure;
+use crate::eval::translation::predict_translation;
+use crate::eval::{EvalRequest, EvalResult, eval_file, evaluate_run};
 use crate::plots::{plot_label_errors, plot_training_curves, plot_translation, write_png};
 use crate::progress::bar;
 use crate::run_info::RunInfo;
@@ -37,7 +41,6 @@ use crate::training::{TRANSLATION_DIR, Target, TrainRequest, is_trained, train_m
 use crate::training_data::{
     ExampleOptions, LabelSource, crop_files, load_examples, to_unit_floats,
 };
-use crate::translation_eval::predict_translation;
 
 /// The objects of the run.
 const OBJECTS: [ObjectKind; 3] = [ObjectKind::Can, ObjectKind::Box, ObjectKind::Bowl];
@@ -93,7 +96,7 @@ impl ModelRun {
 }
 
 /// Runs (or resumes) the pipeline of `plan` into `out`.
-pub fn run_pipeline(out: &Path, plan: &Plan, seed: u64) -> Result<PipelineSummary, PipelineError> {
+pub fn run_pipeline(out: &Path, plan: &Plan, seed: u64) -> Result<PipelineSummary, Error> {
     std::fs::create_dir_all(out)
         .map_err(|e| bop_dataset::FileError::new(out, "folder", e.to_string()))?;
     config::check_and_record(out, &plan.config(seed))?;
@@ -147,7 +150,7 @@ fn data_dir(out: &Path, variant: Variant) -> PathBuf {
 /// Stage 1, datasets: the uniform one to train and validate on, the textured one (training
 /// split) for the accuracy of its pseudo labels, with the plan's sensor's depth. Complete
 /// scenes are skipped.
-fn synthesize_datasets(out: &Path, plan: &Plan, seed: u64) -> Result<(), PipelineError> {
+fn synthesize_datasets(out: &Path, plan: &Plan, seed: u64) -> Result<(), Error> {
     let splits = [
         (Variant::Uniform, "train", plan.frames, seed),
         (Variant::Uniform, "val", plan.val_frames, seed + 1),
@@ -180,7 +183,7 @@ fn label_datasets(
     out: &Path,
     plan: &Plan,
     seed: u64,
-) -> Result<BTreeMap<String, BTreeMap<String, LabelAccuracy>>, PipelineError> {
+) -> Result<BTreeMap<String, BTreeMap<String, LabelAccuracy>>, Error> {
     let mut accuracy: BTreeMap<String, BTreeMap<String, LabelAccuracy>> = BTreeMap::new();
     for variant in Variant::ALL {
         let path = out.join(format!("labels_{}.json", variant.name()));
@@ -220,7 +223,7 @@ fn label_datasets(
 
 /// The pseudo labels of `variant`'s training split scored against its ground truth (the per-label
 /// errors included, which `labels_{variant}.json` does not keep).
-fn score_labels(out: &Path, variant: Variant) -> Result<LabelReport, PipelineError> {
+fn score_labels(out: &Path, variant: Variant) -> Result<LabelReport, Error> {
     let dataset = BopDataset::open(&data_dir(out, variant), "models")?;
     let names = dataset.read_info()?.unwrap_or_default().names;
     Ok(pseudo_label::report(
@@ -268,12 +271,7 @@ fn model_runs(out: &Path, plan: &Plan) -> Vec<ModelRun> {
 }
 
 /// Stage 3: trains the models not trained yet, `plan.concurrent_models` at a time.
-fn train_models(
-    out: &Path,
-    plan: &Plan,
-    runs: &[ModelRun],
-    seed: u64,
-) -> Result<(), PipelineError> {
+fn train_models(out: &Path, plan: &Plan, runs: &[ModelRun], seed: u64) -> Result<(), Error> {
     let mut pending = Vec::new();
     for run in runs {
         for &target in run.targets() {
@@ -331,7 +329,7 @@ fn train_models(
 
 /// Stage 4, scores on the validation split (`eval_levelN.json` per run, kept), the runs not
 /// scored yet `plan.concurrent_models` at a time, as in training.
-fn evaluate_models(plan: &Plan, runs: &[ModelRun]) -> Result<Vec<EvalResult>, PipelineError> {
+fn evaluate_models(plan: &Plan, runs: &[ModelRun]) -> Result<Vec<EvalResult>, Error> {
     let pending: Vec<&ModelRun> = runs
         .iter()
         .filter(|run| !eval_file(&run.dir, plan.eval_level).exists())
@@ -361,11 +359,7 @@ fn evaluate_models(plan: &Plan, runs: &[ModelRun]) -> Result<Vec<EvalResult>, Pi
 
 /// Stage 5, figures: each model's distribution for the first validation image of its object,
 /// and its training curves (existing figures are kept).
-fn draw_figures(
-    out: &Path,
-    plan: &Plan,
-    runs: &[ModelRun],
-) -> Result<Vec<FigureEntry>, PipelineError> {
+fn draw_figures(out: &Path, plan: &Plan, runs: &[ModelRun]) -> Result<Vec<FigureEntry>, Error> {
     let figures = out.join("figures");
     let data = data_dir(out, Variant::Uniform);
     let mut entries = Vec::new();
@@ -408,7 +402,7 @@ const LABEL_ERRORS_FIGURE: &str = "label_errors.png";
 
 /// Draws [`LABEL_ERRORS_FIGURE`] from the labels and ground truth of the training splits (the
 /// report files hold the means only), unless it exists.
-fn draw_label_errors(out: &Path, path: &Path) -> Result<(), PipelineError> {
+fn draw_label_errors(out: &Path, path: &Path) -> Result<(), Error> {
     if path.exists() {
         return Ok(());
     }
@@ -430,7 +424,7 @@ fn first_validation_figure(
     run: &ModelRun,
     data: &Path,
     level: u8,
-) -> Result<image::RgbImage, PipelineError> {
+) -> Result<image::RgbImage, Error> {
     let info = RunInfo::read(&run.dir)?;
     let model = ImplicitPdf::load(&run.dir, default_device())?;
     let dataset = BopDataset::new(data);
@@ -468,7 +462,7 @@ fn first_validation_figure(
             );
         }
     }
-    Err(PipelineError::option(
+    Err(Error::option(
         "dataset",
         format!("no validation image of {}", run.object.name()),
     ))
@@ -476,7 +470,7 @@ fn first_validation_figure(
 
 /// The translation distribution of `run`'s translation model for the first validation image of
 /// its object, against the ground truth.
-fn first_translation_figure(run: &ModelRun, data: &Path) -> Result<image::RgbImage, PipelineError> {
+fn first_translation_figure(run: &ModelRun, data: &Path) -> Result<image::RgbImage, Error> {
     let dir = run.dir_of(Target::Translation);
     let info = RunInfo::read(&dir)?;
     let model = TranslationPdf::load(&dir, default_device())?;
@@ -489,7 +483,7 @@ fn first_translation_figure(run: &ModelRun, data: &Path) -> Result<image::RgbIma
         examples.geometry.first(),
         examples.truth_poses.as_ref().and_then(|t| t.first()),
     ) else {
-        return Err(PipelineError::option(
+        return Err(Error::option(
             "dataset",
             format!("no validation image of {}", run.object.name()),
         ));

@@ -5,9 +5,9 @@ use metrics::{RECALL_THRESHOLD, recall_min_log_density};
 use serde::{Deserialize, Serialize};
 
 use super::config::PipelineConfig;
+use crate::eval::translation::{ADD_S_AUC_FRACTION, PoseEval, TranslationEval};
 use crate::training_data::LabelSource;
-use crate::translation_eval::{ADD_S_AUC_FRACTION, PoseEval, TranslationEval};
-use ipdf_model::UNDER_RESOLUTION_LIMIT;
+use ipdf_model::rotation::UNDER_RESOLUTION_LIMIT;
 
 /// The scores of one model.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -21,7 +21,7 @@ pub struct ModelScores {
     /// Validation crops scored.
     pub images: usize,
     /// How far the evaluation grid is from resolving the model's peaks
-    /// ([`ipdf_model::Predictor::under_resolution`]).
+    /// ([`ipdf_model::rotation::Predictor::under_resolution`]).
     #[serde(default)]
     pub under_resolution: f64,
     /// The scores of its translation model, when it has one.

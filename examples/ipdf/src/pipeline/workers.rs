@@ -1,7 +1,7 @@
 //! Training several models at once on threads of their own.
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use crate::PipelineError;
+use crate::Error;
 
 /// Runs `job` on every item, `workers` at a time on threads of their own, each with one
 /// libtorch thread, or more once fewer items are left than workers (`workers` ≤ 1: in turn,
@@ -10,14 +10,14 @@ use crate::PipelineError;
 pub fn on_threads<T: Sync>(
     items: &[T],
     workers: usize,
-    job: impl Fn(&T) -> Result<(), PipelineError> + Sync,
-) -> Result<(), PipelineError> {
+    job: impl Fn(&T) -> Result<(), Error> + Sync,
+) -> Result<(), Error> {
     if workers <= 1 {
         return items.iter().try_for_each(job);
     }
     let threads = tch::get_num_threads();
     let next = AtomicUsize::new(0);
-    let work = || -> Result<(), PipelineError> {
+    let work = || -> Result<(), Error> {
         loop {
             let index = next.fetch_add(1, Ordering::Relaxed);
             let Some(item) = items.get(index) else {
@@ -28,14 +28,14 @@ pub fn on_threads<T: Sync>(
             job(item).inspect_err(|_| next.store(items.len(), Ordering::Relaxed))?;
         }
     };
-    let outcomes: Vec<Result<(), PipelineError>> = std::thread::scope(|scope| {
+    let outcomes: Vec<Result<(), Error>> = std::thread::scope(|scope| {
         let handles: Vec<_> = (0..workers).map(|_| scope.spawn(work)).collect();
         handles
             .into_iter()
             .map(|handle| {
-                handle.join().unwrap_or_else(|_| {
-                    Err(PipelineError::option("train", "a training thread panicked"))
-                })
+                handle
+                    .join()
+                    .unwrap_or_else(|_| Err(Error::option("train", "a training thread panicked")))
             })
             .collect()
     });
@@ -74,7 +74,7 @@ mod tests {
             let outcome = on_threads(&items, workers, |&i| {
                 started.fetch_add(1, Ordering::Relaxed);
                 if i == 3 {
-                    return Err(PipelineError::option("item", format!("{i} failed")));
+                    return Err(Error::option("item", format!("{i} failed")));
                 }
                 std::thread::sleep(std::time::Duration::from_millis(20));
                 Ok(())

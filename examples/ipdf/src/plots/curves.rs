@@ -5,7 +5,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use super::style::{FONT, draw_figure, figure_error};
-use crate::PipelineError;
+use crate::Error;
 
 /// matplotlib's first two colours.
 const BLUE: RGBColor = RGBColor(31, 119, 180);
@@ -68,7 +68,7 @@ fn panel(
     legend: &str,
     series: &Series,
     colour: RGBColor,
-) -> Result<(), PipelineError> {
+) -> Result<(), Error> {
     // Epochs are whole numbers: an integer axis gets integer ticks.
     let points: Vec<(i64, f64)> = series.iter().map(|&(e, v)| (e.round() as i64, v)).collect();
     let x_low = points.iter().map(|p| p.0).min().unwrap_or(0);
@@ -140,7 +140,7 @@ fn panel(
 }
 
 /// The figure of a run's `train_log.csv` text: training loss and validation LLH per epoch.
-pub fn plot_training_curves(text: &str, path: &std::path::Path) -> Result<RgbImage, PipelineError> {
+pub fn plot_training_curves(text: &str, path: &std::path::Path) -> Result<RgbImage, Error> {
     let (losses, llhs) = read_train_log(text, path)?;
     draw_figure(1200, 480, |root| {
         let panels = root.split_evenly((1, 2));

@@ -9,7 +9,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use super::style::{FONT, draw_figure, figure_error, hue};
-use crate::PipelineError;
+use crate::Error;
 
 const WIDTH: u32 = 1180;
 const HEIGHT: u32 = 480;
@@ -60,7 +60,7 @@ pub fn plot_distribution(
     probabilities: &[f64],
     truth: &[UnitQuaternion<f64>],
     title: &str,
-) -> Result<RgbImage, PipelineError> {
+) -> Result<RgbImage, Error> {
     draw_figure(WIDTH, HEIGHT, |root| {
         let text = |size: u32| (FONT, size).into_text_style(root);
         root.draw_text(
@@ -82,7 +82,7 @@ pub fn plot_distribution(
 }
 
 /// The crop, scaled to [`CROP`]'s side, with its size beneath.
-fn draw_crop(root: &Area<'_>, crop: &[u8], size: usize) -> Result<(), PipelineError> {
+fn draw_crop(root: &Area<'_>, crop: &[u8], size: usize) -> Result<(), Error> {
     let plane = size * size;
     if size == 0 || crop.len() != 3 * plane {
         return Ok(());
@@ -117,7 +117,7 @@ fn draw_crop(root: &Area<'_>, crop: &[u8], size: usize) -> Result<(), PipelineEr
 }
 
 /// Meridians every 60° and parallels every 30°, with their degrees.
-fn draw_graticule(root: &Area<'_>) -> Result<(), PipelineError> {
+fn draw_graticule(root: &Area<'_>) -> Result<(), Error> {
     let pixel = |(x, y): (f64, f64)| (x.round() as i32, y.round() as i32);
     let label = (FONT, 14).into_text_style(root);
     for degrees in (-180i32..=180).step_by(60) {
@@ -159,7 +159,7 @@ fn draw_cells(
     root: &Area<'_>,
     rotations: &[UnitQuaternion<f64>],
     probabilities: &[f64],
-) -> Result<(), PipelineError> {
+) -> Result<(), Error> {
     let peak = probabilities.iter().copied().fold(0.0, f64::max);
     let cells = probabilities.len().min(rotations.len());
     let floor = (1e-3 * peak).max(1.0 / cells.max(1) as f64);
@@ -184,7 +184,7 @@ fn draw_cells(
 
 /// Ground truth: a line through consecutive members of a continuous set, rings otherwise (black
 /// outside, the rotation's colour inside).
-fn draw_truth(root: &Area<'_>, truth: &[UnitQuaternion<f64>]) -> Result<(), PipelineError> {
+fn draw_truth(root: &Area<'_>, truth: &[UnitQuaternion<f64>]) -> Result<(), Error> {
     let continuous = truth.len() > 100;
     let projected: Vec<_> = truth
         .iter()
@@ -217,7 +217,7 @@ fn draw_truth(root: &Area<'_>, truth: &[UnitQuaternion<f64>]) -> Result<(), Pipe
 }
 
 /// The colour wheel of the rotation about the axis, with its angles.
-fn draw_wheel(root: &Area<'_>) -> Result<(), PipelineError> {
+fn draw_wheel(root: &Area<'_>) -> Result<(), Error> {
     let (cx, cy, inner, outer) = (1110.0, 385.0, 20.0, 36.0);
     for k in 0..120 {
         let (a, b) = (

@@ -7,7 +7,7 @@ use plotters::prelude::*;
 use pseudo_label::{COVERAGE_ANGLE_DEG, LabelReport};
 
 use super::style::{FONT, draw_figure, figure_error};
-use crate::PipelineError;
+use crate::Error;
 
 /// The smallest and largest error shown (degrees); smaller errors are drawn at the left edge.
 const RANGE_DEG: (f64, f64) = (1e-3, 180.0);
@@ -28,7 +28,7 @@ const COLOURS: [RGBColor; 10] = [
 
 /// The figure of `reports` (one panel per `(title, report)`), each object's errors as a
 /// cumulative distribution.
-pub fn plot_label_errors(reports: &[(&str, &LabelReport)]) -> Result<RgbImage, PipelineError> {
+pub fn plot_label_errors(reports: &[(&str, &LabelReport)]) -> Result<RgbImage, Error> {
     let columns = reports.len().max(1);
     draw_figure(560 * columns as u32, 460, |root| {
         for (area, (title, report)) in root.split_evenly((1, columns)).iter().zip(reports) {
@@ -43,7 +43,7 @@ fn panel(
     area: &DrawingArea<BitMapBackend<'_>, Shift>,
     title: &str,
     report: &LabelReport,
-) -> Result<(), PipelineError> {
+) -> Result<(), Error> {
     let mut chart = ChartBuilder::on(area)
         .caption(format!("Pseudo-label errors: {title}"), (FONT, 20))
         .margin(12)

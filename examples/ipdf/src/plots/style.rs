@@ -7,13 +7,13 @@ use image::RgbImage;
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
 
-use crate::PipelineError;
+use crate::Error;
 
 /// The font family every text of the figures uses.
 pub const FONT: &str = "sans-serif";
 
 /// Registers DejaVu Sans (regular and bold) as [`FONT`] with plotters, once.
-fn register_fonts() -> Result<(), PipelineError> {
+fn register_fonts() -> Result<(), Error> {
     static REGISTERED: OnceLock<bool> = OnceLock::new();
     let ok = *REGISTERED.get_or_init(|| {
         register_font(FONT, FontStyle::Normal, dejavu::sans::regular()).is_ok()
@@ -22,25 +22,21 @@ fn register_fonts() -> Result<(), PipelineError> {
     if ok {
         Ok(())
     } else {
-        Err(PipelineError::Figure(
-            "the embedded font cannot be read".into(),
-        ))
+        Err(Error::Figure("the embedded font cannot be read".into()))
     }
 }
 
-/// A drawing error as a [`PipelineError::Figure`].
-pub fn figure_error(error: impl std::fmt::Display) -> PipelineError {
-    PipelineError::Figure(error.to_string())
+/// A drawing error as a [`Error::Figure`].
+pub fn figure_error(error: impl std::fmt::Display) -> Error {
+    Error::Figure(error.to_string())
 }
 
 /// Draws a `width × height` figure on a white canvas with `draw`, and returns it as an image.
 pub fn draw_figure(
     width: u32,
     height: u32,
-    draw: impl FnOnce(
-        &DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>,
-    ) -> Result<(), PipelineError>,
-) -> Result<RgbImage, PipelineError> {
+    draw: impl FnOnce(&DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>) -> Result<(), Error>,
+) -> Result<RgbImage, Error> {
     register_fonts()?;
     let mut buffer = vec![255u8; 3 * width as usize * height as usize];
     {
@@ -49,7 +45,7 @@ pub fn draw_figure(
         root.present().map_err(figure_error)?;
     }
     RgbImage::from_raw(width, height, buffer)
-        .ok_or_else(|| PipelineError::Figure("canvas of the wrong size".into()))
+        .ok_or_else(|| Error::Figure("canvas of the wrong size".into()))
 }
 
 /// A fully saturated colour of hue `h` (turns; any real number wraps), as matplotlib's `hsv`

@@ -8,7 +8,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use super::style::{FONT, draw_figure, figure_error};
-use crate::PipelineError;
+use crate::Error;
 
 /// The figure frames the cells holding this much of the probability.
 const FRAMED_MASS: f64 = 0.95;
@@ -25,7 +25,7 @@ pub fn plot_translation(
     truth: &Vector3<f64>,
     argmax: &Vector3<f64>,
     title: &str,
-) -> Result<RgbImage, PipelineError> {
+) -> Result<RgbImage, Error> {
     let offsets: Vec<(Vector3<f64>, f64)> = centres
         .iter()
         .zip(masses)
@@ -87,7 +87,7 @@ fn panel(
     offsets: &[(Vector3<f64>, f64)],
     heaviest: f64,
     argmax: &Vector3<f64>,
-) -> Result<(), PipelineError> {
+) -> Result<(), Error> {
     let mut chart = ChartBuilder::on(area)
         .caption(view, (FONT, 16))
         .margin(12)

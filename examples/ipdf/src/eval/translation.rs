@@ -5,10 +5,12 @@
 use std::path::{Path, PathBuf};
 
 use indicatif::ProgressBar;
-use ipdf_model::{
-    CellMasses, CropGeometry, CropTerms, ImplicitPdf, TranslationArgmax, TranslationArgmaxOptions,
-    TranslationPdf, TranslationPredictor, default_device,
+use ipdf_model::rotation::ImplicitPdf;
+use ipdf_model::translation::{
+    CropGeometry, CropTerms, TranslationArgmax, TranslationArgmaxOptions, TranslationPdf,
+    TranslationPredictor,
 };
+use ipdf_model::{CellMasses, default_device};
 use metrics::{ModelPoints, add_s, auc, translation_error};
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
@@ -16,7 +18,7 @@ use tch::Tensor;
 
 use bop_dataset::BopDataset;
 
-use crate::PipelineError;
+use crate::Error;
 use crate::training::TRANSLATION_DIR;
 use crate::training_data::{Examples, to_unit_floats};
 
@@ -80,7 +82,7 @@ pub fn predict_translation(
     model: &TranslationPdf,
     crop: &Tensor,
     geometry: &CropGeometry,
-) -> Result<TranslationPrediction, PipelineError> {
+) -> Result<TranslationPrediction, Error> {
     let predictor = TranslationPredictor::new(model);
     let terms = predictor.crop_terms(crop, geometry)?;
     predict_from(&predictor, &terms, geometry)
@@ -91,7 +93,7 @@ fn predict_from(
     predictor: &TranslationPredictor,
     terms: &CropTerms,
     geometry: &CropGeometry,
-) -> Result<TranslationPrediction, PipelineError> {
+) -> Result<TranslationPrediction, Error> {
     let options = TranslationArgmaxOptions {
         cell_size: TRANSLATION_CELL_MM,
         ..TranslationArgmaxOptions::default()
@@ -112,7 +114,7 @@ pub fn evaluate_translation(
     model: &TranslationPdf,
     examples: &Examples,
     progress: &ProgressBar,
-) -> Result<(TranslationEval, Vec<Vector3<f64>>), PipelineError> {
+) -> Result<(TranslationEval, Vec<Vector3<f64>>), Error> {
     let truths = truth_poses(examples)?;
     let predictor = TranslationPredictor::new(model);
     let (mut llh, mut errors, mut argmax, mut queries) = (0.0, Vec::new(), Vec::new(), 0);
@@ -159,7 +161,7 @@ pub fn evaluate_pose(
     dataset: &BopDataset,
     obj_id: u32,
     llh: (f64, f64),
-) -> Result<PoseEval, PipelineError> {
+) -> Result<PoseEval, Error> {
     let truths = truth_poses(examples)?;
     let (points, diameter_mm) = model_points(dataset, obj_id)?;
     let mut errors = Vec::with_capacity(truths.len());
@@ -181,15 +183,16 @@ fn median(values: &mut [f64]) -> f64 {
     values.get(values.len() / 2).copied().unwrap_or(f64::NAN)
 }
 
-fn truth_poses(examples: &Examples) -> Result<&[Isometry3<f64>], PipelineError> {
-    examples.truth_poses.as_deref().ok_or_else(|| {
-        PipelineError::option("dataset", "evaluation needs the split's scene_gt.json")
-    })
+fn truth_poses(examples: &Examples) -> Result<&[Isometry3<f64>], Error> {
+    examples
+        .truth_poses
+        .as_deref()
+        .ok_or_else(|| Error::option("dataset", "evaluation needs the split's scene_gt.json"))
 }
 
 /// [`ADD_S_POINTS`] points on the surface of `obj_id`'s mesh (mm, as BOP meshes are) and its
 /// diameter from `models_info.json`.
-fn model_points(dataset: &BopDataset, obj_id: u32) -> Result<(ModelPoints, f64), PipelineError> {
+fn model_points(dataset: &BopDataset, obj_id: u32) -> Result<(ModelPoints, f64), Error> {
     let path = dataset.model_path(obj_id);
     let mesh = depth_render::load_mesh(&path, 1.0)
         .map_err(|e| bop_dataset::FileError::new(&path, "mesh", e.to_string()))?
@@ -220,7 +223,7 @@ pub fn pose_translation_dir(run: &Path) -> Option<PathBuf> {
 pub fn pose_translation_model(
     run: &Path,
     rotation: &ImplicitPdf,
-) -> Result<Option<TranslationPdf>, PipelineError> {
+) -> Result<Option<TranslationPdf>, Error> {
     let Some(dir) = pose_translation_dir(run) else {
         return Ok(None);
     };
@@ -230,7 +233,7 @@ pub fn pose_translation_model(
         rotation.config().input_size,
     );
     if size != expected {
-        return Err(PipelineError::option(
+        return Err(Error::option(
             "checkpoint",
             format!(
                 "{}: the translation model takes {size} px crops, the rotation model {expected}",
@@ -243,7 +246,7 @@ pub fn pose_translation_model(
 
 /// Whether the run folder `dir` holds a translation model's checkpoint (a folder without a
 /// checkpoint is left to the rotation model's loader, whose error names what is missing).
-pub fn is_translation_run(dir: &Path) -> Result<bool, PipelineError> {
+pub fn is_translation_run(dir: &Path) -> Result<bool, Error> {
     if !dir.join(ipdf_model::CHECKPOINT_FILE).exists() {
         return Ok(false);
     }

@@ -1,114 +1,25 @@
-//! The paper's scores of a trained model on examples with ground truth: for each crop, the
-//! normalised distribution on the grid (refined hierarchically, or dense), then LLH (mean
-//! log-density over the ground-truth symmetry set), MAAD (expected distance of a sample to the
-//! nearest ground-truth rotation) and Recall MAAD (mean distance of each ground-truth rotation
-//! to the nearest predicted one), averaged over crops.
+//! Scores of trained runs on a BOP split with ground truth (`ipdf eval`, the pipeline's
+//! `eval_levelN.json`): a rotation model's ([`rotation`]), a translation model's and a pose's
+//! ([`translation`]), side by side.
+pub mod rotation;
+pub mod translation;
+
 use std::path::{Path, PathBuf};
 
 use bop_dataset::BopDataset;
 use indicatif::ProgressBar;
-use ipdf_model::{
-    ArgmaxOptions, CellMasses, ImplicitPdf, Predictor, RefineOptions, TranslationPdf,
-    UNDER_RESOLUTION_LIMIT, default_device,
-};
-use metrics::{Distribution, GridCell, RECALL_THRESHOLD, maad, recall_maad};
-use nalgebra::UnitQuaternion;
+use ipdf_model::rotation::{ImplicitPdf, UNDER_RESOLUTION_LIMIT};
+use ipdf_model::translation::TranslationPdf;
+use ipdf_model::{RefineOptions, default_device};
 use serde::{Deserialize, Serialize};
-use so3_grid::Grid;
 
-use crate::PipelineError;
-use crate::plots::plot_distribution;
+use crate::Error;
 use crate::run_info::RunInfo;
-use crate::training_data::{ExampleOptions, Examples, crop_tensor, load_examples, to_unit_floats};
-use crate::translation_eval::{
+use crate::training_data::{ExampleOptions, load_examples};
+use rotation::evaluate_rotations;
+use translation::{
     PoseEval, TranslationEval, evaluate_pose, evaluate_translation, pose_translation_model,
 };
-
-/// Mean scores over the crops evaluated.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Scores {
-    /// Crops evaluated.
-    pub images: usize,
-    /// Mean log-likelihood of the ground-truth set (−2.29 for a uniform density).
-    pub llh: f64,
-    /// Mean absolute angular deviation, degrees.
-    pub maad_deg: f64,
-    /// Recall mean absolute angular deviation, degrees.
-    pub recall_maad_deg: f64,
-    /// The most network queries one crop took.
-    pub queries_per_image: usize,
-    /// How far the grid is from resolving the model's peaks
-    /// ([`Predictor::under_resolution`]), the mean over crops.
-    pub under_resolution: f64,
-}
-
-/// Scores `model` on every crop of `examples`, its distribution evaluated on the cells
-/// `grid` describes ([`RefineOptions::to_level`] for the hierarchical evaluation,
-/// [`RefineOptions::dense`] for every cell of a level); `progress` advances by one per crop.
-/// LLH is the reference implementation's: the density `exp(F(R) − ln Z)` at each ground-truth
-/// rotation itself, `Z` from the grid; MAAD and Recall MAAD come from the `metrics` crate on
-/// the cells' masses. Fails when the examples have no ground truth.
-pub fn evaluate(
-    model: &ImplicitPdf,
-    examples: &Examples,
-    grid: &RefineOptions,
-    progress: &ProgressBar,
-) -> Result<Scores, PipelineError> {
-    Ok(evaluate_rotations(model, examples, grid, false, progress)?.0)
-}
-
-/// [`evaluate`], and with `argmax` each crop's most likely rotation too
-/// ([`Predictor::argmax_from`] on the same distribution; empty without). Each crop's image term
-/// is computed once.
-pub fn evaluate_rotations(
-    model: &ImplicitPdf,
-    examples: &Examples,
-    grid: &RefineOptions,
-    argmax: bool,
-    progress: &ProgressBar,
-) -> Result<(Scores, Vec<UnitQuaternion<f64>>), PipelineError> {
-    let Some(truths) = &examples.truth_sets else {
-        return Err(PipelineError::option(
-            "dataset",
-            "evaluation needs the split's scene_gt.json",
-        ));
-    };
-    let mut predictor = Predictor::new(model);
-    let argmax_options = ArgmaxOptions {
-        refine: *grid,
-        ..ArgmaxOptions::default()
-    };
-    let (mut sum_llh, mut sum_maad, mut sum_recall, mut queries) = (0.0, 0.0, 0.0, 0);
-    let mut sum_under = 0.0;
-    let mut rotations = Vec::new();
-    for (i, truth) in truths.iter().enumerate() {
-        let crop = to_unit_floats(&examples.crops.get(i as i64));
-        let image_term = predictor.image_term(&crop)?;
-        let masses = predictor.hierarchical_for(&image_term, grid)?;
-        let densities = predictor.log_densities_for(&image_term, truth, &masses)?;
-        sum_llh += densities.iter().sum::<f64>() / densities.len().max(1) as f64;
-        let distribution = cell_distribution(&masses)?;
-        sum_maad += maad(&distribution, truth)?;
-        sum_recall += recall_maad(&distribution, truth, RECALL_THRESHOLD)?;
-        sum_under += predictor.under_resolution_for(&image_term, &masses)?;
-        queries = queries.max(masses.queries);
-        if argmax {
-            let best = predictor.argmax_from(&image_term, &masses, &argmax_options)?;
-            rotations.push(best.rotation);
-        }
-        progress.inc(1);
-    }
-    let n = truths.len().max(1) as f64;
-    let scores = Scores {
-        images: truths.len(),
-        llh: sum_llh / n,
-        maad_deg: sum_maad / n,
-        recall_maad_deg: sum_recall / n,
-        queries_per_image: queries,
-        under_resolution: sum_under / n,
-    };
-    Ok((scores, rotations))
-}
 
 /// Which trained run to score, on what and on which grid.
 #[derive(Debug, Clone, PartialEq)]
@@ -157,7 +68,7 @@ pub struct EvalResult {
     /// Recall mean absolute angular deviation (degrees).
     pub recall_maad_deg: f64,
     /// How far the grid is from resolving the model's peaks
-    /// ([`Predictor::under_resolution`], mean over the crops).
+    /// ([`ipdf_model::rotation::Predictor::under_resolution`], mean over the crops).
     #[serde(default)]
     pub under_resolution: f64,
     /// Why the scores may mislead: a level too coarse for the model's sharpness.
@@ -191,7 +102,7 @@ pub struct TranslationRunEval {
 pub fn evaluate_translation_run(
     request: &EvalRequest,
     progress: &ProgressBar,
-) -> Result<TranslationRunEval, PipelineError> {
+) -> Result<TranslationRunEval, Error> {
     let (info, dataset) = run_dataset(request)?;
     let model = TranslationPdf::load(&request.checkpoint, default_device())?;
     let size = model.config().network.input_size as usize;
@@ -212,7 +123,7 @@ pub fn evaluate_translation_run(
 
 /// The run's `run.json` (with the request's models folder and object id) and its dataset (the
 /// request's copy, or where it was trained).
-fn run_dataset(request: &EvalRequest) -> Result<(RunInfo, BopDataset), PipelineError> {
+fn run_dataset(request: &EvalRequest) -> Result<(RunInfo, BopDataset), Error> {
     let mut info = RunInfo::read(&request.checkpoint)?;
     if let Some(models_dir) = &request.models_dir {
         info.models_dir.clone_from(models_dir);
@@ -226,13 +137,10 @@ fn run_dataset(request: &EvalRequest) -> Result<(RunInfo, BopDataset), PipelineE
 
 /// Scores the run of `request` on its split; `progress` has its length set to the crops and
 /// advances by one per crop.
-pub fn evaluate_run(
-    request: &EvalRequest,
-    progress: &ProgressBar,
-) -> Result<EvalResult, PipelineError> {
+pub fn evaluate_run(request: &EvalRequest, progress: &ProgressBar) -> Result<EvalResult, Error> {
     let grid = if request.dense {
         if request.level > 5 {
-            return Err(PipelineError::option(
+            return Err(Error::option(
                 "level",
                 format!(
                     "--dense goes up to level 5 (2,359,296 cells); got --level {}",
@@ -312,29 +220,4 @@ pub fn evaluate_run(
 /// The file the pipeline keeps a run's scores at `level` in.
 pub fn eval_file(run_dir: &Path, level: u8) -> PathBuf {
     run_dir.join(format!("eval_level{level}.json"))
-}
-
-/// The cells and masses of a (hierarchical or dense) evaluation as a `metrics` distribution.
-pub fn cell_distribution(masses: &CellMasses) -> Result<Distribution, PipelineError> {
-    let cells = masses
-        .cells
-        .iter()
-        .map(|&(level, index)| GridCell { level, index })
-        .collect();
-    Ok(Distribution::from_cells(cells, masses.masses.clone())?)
-}
-
-/// The Implicit-PDF figure of `model`'s distribution for an 8-bit crop (`[3, S, S]`) on the
-/// `level` grid, with `truth` drawn over it.
-pub fn distribution_figure(
-    model: &ImplicitPdf,
-    crop: &[u8],
-    truth: &[nalgebra::UnitQuaternion<f64>],
-    level: u8,
-    title: &str,
-) -> Result<image::RgbImage, PipelineError> {
-    let size = model.config().input_size as usize;
-    let grid = Grid::new(level).map_err(|e| PipelineError::option("level", e.to_string()))?;
-    let masses = Predictor::new(model).probabilities(&crop_tensor(crop, size), level)?;
-    plot_distribution(crop, size, &grid.rotations(), &masses, truth, title)
 }

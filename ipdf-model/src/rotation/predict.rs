@@ -6,10 +6,11 @@ use nalgebra::{UnitQuaternion, Vector3};
 use so3_grid::{Grid, cell_count};
 use tch::{Kind, Tensor};
 
+use super::ImplicitPdf;
+use crate::ModelError;
 use crate::encoding::{encode_rotations, rotations_to_tensor};
 use crate::head::Head;
 use crate::refine::{CellMasses, RefineOptions, refine};
-use crate::{ImplicitPdf, ModelError};
 
 /// Rotations evaluated per network call. Activations of `CHUNK · H` floats (4 MiB for H = 256)
 /// stay in cache between layers: 4,096 took half the time of 32,768 (`make bench`,
