@@ -30,7 +30,7 @@ lint: setup
 
 bench: setup
 	# glibc backs large allocations with transparent huge pages: fewer page faults on the
-	# 75 MB of a level-5 grid (see README, "Performance notes").
+	# 75 MB of a level-5 grid (see docs/performance.md).
 	GLIBC_TUNABLES=glibc.malloc.hugetlb=1 $(CARGO) bench -p benches
 
 # The Python baselines the benches are compared with (healpy + numpy; Open3D's Embree ray

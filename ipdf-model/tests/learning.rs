@@ -217,7 +217,7 @@ fn symmetry_sets_are_learned_from_set_labels_and_not_from_single_labels() {
         } else {
             // 400 steps leave 5–15% of this model's mass in peaks inside level-2 cells whose
             // centres and siblings barely see them (≈ 0.13 nats of the normaliser are missed;
-            // on the demo's trained models the gap is ≤ 0.005, see the README); the bound only
+            // on the demo's trained models the gap is ≤ 0.005, see docs/results.md); the bound only
             // catches a broken hierarchy.
             assert!(gaps.llh < 0.5 && gaps.maad < 2.0, "{name}: {gaps:?}");
             assert!(gaps.argmax_error < 10.0, "{name}: {gaps:?}");

@@ -8,7 +8,7 @@
 //! (`purge_delay` −1) reuses those pages instead; the price is that the process keeps its peak
 //! memory until it exits. jemalloc with `dirty_decay_ms:-1` gave the same step time (and the
 //! same weights) with 22 times as many page faults, and its C build took 75 of the release
-//! build's 626 CPU-seconds; mimalloc's takes 5 (see the README's "Performance notes").
+//! build's 626 CPU-seconds; mimalloc's takes 5 (see docs/performance.md).
 
 /// Declares mimalloc, configured as this module describes, as the global allocator of the
 /// binary that invokes it (once, at the crate root).

@@ -35,3 +35,8 @@ pub mod training;
 pub mod training_data;
 
 pub use error::Error;
+
+/// The README's Rust example, compiled and run by `cargo test --doc`.
+#[cfg(doctest)]
+#[doc = include_str!("../../../README.md")]
+pub struct ReadmeExample;

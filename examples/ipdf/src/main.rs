@@ -1,5 +1,5 @@
 //! `ipdf`: pose-label-free learning of symmetric object orientations, from the command line.
-//! See `ipdf --help` and the README.
+//! See `ipdf --help` and docs/guide.md.
 use std::process::ExitCode;
 
 use anyhow::Result;
@@ -154,7 +154,7 @@ fn main() -> ExitCode {
     };
     if cli.threads > 0 {
         // libtorch's own threads too, so that `--threads` fixes every thread count that can
-        // change a result (see README, "Determinism").
+        // change a result (see docs/method.md, "Determinism").
         tch::set_num_threads(cli.threads as i32);
     }
     let pool = rayon::ThreadPoolBuilder::new()

@@ -1,4 +1,4 @@
-//! Rotations as NumPy `.npy` arrays, the exchange format with Python (DESIGN.md): `N×4`
+//! Rotations as NumPy `.npy` arrays, the exchange format with Python (docs/design.md): `N×4`
 //! quaternions `w, x, y, z` or `N×3×3` matrices, little-endian float32.
 use std::path::Path;
 

@@ -114,7 +114,7 @@ fn a_miniature_pipeline_writes_every_artefact() {
     for stage in ["synth", "label", "train", "eval", "figures"] {
         assert!(report["timing_s"][stage].as_f64().is_some(), "{stage}");
     }
-    // The libtorch kernels the binary pinned, recorded (see README, "Determinism").
+    // The libtorch kernels the binary pinned, recorded (see docs/method.md, "Determinism").
     for (name, value) in ipdf_model::REPRODUCIBLE_CPU_KERNELS {
         assert_eq!(report["cpu_kernels"][name], value, "{name}");
     }

@@ -1,11 +1,11 @@
-//! The README's command blocks, run in order as a newcomer would, on a miniature scale: the
-//! section "The `ipdf` command line" of README.md is the program's contract, and this test keeps
-//! the two from drifting apart.
+//! The guide's command blocks, run in order as a newcomer would, on a miniature scale:
+//! `docs/guide.md`, the command-line walk the README links to, is the program's contract, and
+//! this test keeps the two from drifting apart.
 //!
 //! Each block is split into commands (comments dropped, `\` continuations joined) and run with
 //! `bash` in a fresh folder where `target/release/ipdf` is this build's binary and `tless` a
 //! copy of the T-LESS layout fixture. Only sizes are shrunk ([`MINIATURE`]); every flag, path
-//! and file the README names is used as written.
+//! and file the guide names is used as written.
 mod common;
 
 use std::path::Path;
@@ -22,17 +22,12 @@ const MINIATURE: [(&str, &str); 5] = [
     ("--input-size", "32"),
 ];
 
-/// The commands of the README's `sh` blocks between `start` and the next `## ` heading.
-fn readme_commands(readme: &str, start: &str) -> Vec<String> {
-    let begin = readme.find(start).expect("the section exists");
-    let section = &readme[begin..];
-    let end = section[start.len()..]
-        .find("\n## ")
-        .map_or(section.len(), |at| at + start.len());
+/// The commands of every `sh` block of `guide`, in order.
+fn guide_commands(guide: &str) -> Vec<String> {
     let mut commands = Vec::new();
     let mut in_block = false;
     let mut pending = String::new();
-    for line in section[..end].lines() {
+    for line in guide.lines() {
         if line.starts_with("```") {
             in_block = line == "```sh";
             continue;
@@ -73,8 +68,8 @@ fn miniature(command: &str) -> String {
 #[test]
 fn the_readme_commands_run_in_order() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
-    let commands = readme_commands(&readme, "## The `ipdf` command line");
+    let guide = std::fs::read_to_string(root.join("docs/guide.md")).unwrap();
+    let commands = guide_commands(&guide);
     assert!(commands.len() >= 15, "{commands:#?}");
 
     let dir = tempfile::tempdir().unwrap();
@@ -97,11 +92,11 @@ fn the_readme_commands_run_in_order() {
             .unwrap();
         assert!(
             out.status.success(),
-            "README command failed: {command}\nrun as: {small}\n{}",
+            "guide command failed: {command}\nrun as: {small}\n{}",
             String::from_utf8_lossy(&out.stderr)
         );
     }
-    // What the README says the commands write.
+    // What the guide says the commands write.
     for file in [
         "grid.npy",
         "grid_matrix.npy",
@@ -130,9 +125,6 @@ fn the_walk_shrinks_sizes_only() {
         miniature(command),
         "ipdf train --frames 2 --epochs 1 --object box --batch-size 2"
     );
-    let readme = "## The `ipdf` command line\n```sh\n# a comment\na --x \\\n    --y\n```\ntext\n```rust\nb\n```\n## Next\n```sh\nc\n```\n";
-    assert_eq!(
-        readme_commands(readme, "## The `ipdf` command line"),
-        ["a --x --y"]
-    );
+    let guide = "# Guide\n```sh\n# a comment\na --x \\\n    --y\n```\ntext\n```rust\nb\n```\n```text\nmake demo\n```\n## Next\n```sh\nc\n```\n";
+    assert_eq!(guide_commands(guide), ["a --x --y", "c"]);
 }
