@@ -20,6 +20,7 @@
 //!   ([`ModelInfo`] with its symmetry group), [`read_scene_camera`], [`read_scene_gt`],
 //!   [`read_scene_gt_info`], [`read_pseudo_gt`] and their `write_*` twins, [`write_mesh_ply`].
 //! - Images: [`read_depth`] (metres), [`read_mask`], [`read_rgb`] and their `write_*` twins.
+//! - [`Progress`]: how the long jobs of the crates built on this one report their progress.
 //! - [`write_atomically`] and [`write_json`]: every result file is written to a temporary sibling
 //!   and renamed over its path, so a reader or a resumed run never sees half a file.
 //!
@@ -53,6 +54,7 @@ mod images;
 mod json;
 mod layout;
 mod models;
+mod progress;
 mod pseudo_gt;
 mod recorded;
 mod scene;
@@ -69,6 +71,7 @@ pub use json::{
 };
 pub use layout::{BopDataset, SceneDir};
 pub use models::{ModelInfo, read_models_info, write_mesh_ply, write_models_info};
+pub use progress::Progress;
 pub use pseudo_gt::{PseudoInstance, PseudoLabel, read_pseudo_gt, write_pseudo_gt};
 pub use recorded::{as_recorded, check_recorded};
 pub use scene::{

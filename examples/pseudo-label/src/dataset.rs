@@ -3,13 +3,12 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::time::Instant;
 
-use indicatif::ProgressBar;
 use rayon::prelude::*;
 
 use bop_dataset::{
-    BopDataset, FileError, Intrinsics, PseudoInstance, PseudoLabel, SceneDir, as_recorded,
-    check_recorded, read_depth, read_mask, read_object_ids, read_scene_camera, write_json,
-    write_pseudo_gt,
+    BopDataset, FileError, Intrinsics, Progress, PseudoInstance, PseudoLabel, SceneDir,
+    as_recorded, check_recorded, read_depth, read_mask, read_object_ids, read_scene_camera,
+    write_json, write_pseudo_gt,
 };
 
 use depth_render::SensorPreset;
@@ -260,12 +259,13 @@ fn recorded_options(
 }
 
 /// Labels every unlabelled scene of `options.split` in this shard (see the module docs);
-/// `progress` advances by one per image.
+/// `progress` advances by one per image (a skipped scene's images at once); its total is the
+/// caller's to set ([`BopDataset::image_count`] counts a split's images).
 pub fn label_dataset(
     dataset: &BopDataset,
     dataset_options: &DatasetOptions,
     options: &LabelOptions,
-    progress: &ProgressBar,
+    progress: &dyn Progress,
 ) -> Result<LabelSummary, LabelError> {
     options.validate()?;
     dataset.check_models()?;
@@ -320,7 +320,7 @@ pub fn label_dataset(
         let instances = scene_instances(&scene, dataset_options.obj_id)?;
         if scene.pseudo_gt_path().exists() {
             summary.scenes_skipped += 1;
-            progress.inc(instances.len() as u64);
+            progress.advance(instances.len() as u64);
             continue;
         }
         for obj_id in instances.values().flatten() {
@@ -347,7 +347,7 @@ pub fn label_dataset(
                         )),
                     ),
                 };
-                progress.inc(1);
+                progress.advance(1);
                 (im_id, result)
             })
             .collect();

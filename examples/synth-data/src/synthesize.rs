@@ -4,7 +4,6 @@ use std::path::{Component, Path};
 use std::time::Instant;
 
 use depth_render::{DepthSensor, MaskErrors, Material};
-use indicatif::ProgressBar;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -14,9 +13,9 @@ use crate::frame::{Frame, FrameRenderer, FrameStyle, ViewRange};
 use crate::{SynthError, SynthObject};
 use bop_dataset::{
     BopCamera, BopDataset, DatasetInfo, FileError, GtInfo, GtInstance, Intrinsics, ModelInfo,
-    SceneDir, as_recorded, check_recorded, image_file_complete, read_scene_camera, read_scene_gt,
-    read_scene_gt_info, write_json, write_mesh_ply, write_models_info, write_scene_camera,
-    write_scene_gt, write_scene_gt_info,
+    Progress, SceneDir, as_recorded, check_recorded, image_file_complete, read_scene_camera,
+    read_scene_gt, read_scene_gt_info, write_json, write_mesh_ply, write_models_info,
+    write_scene_camera, write_scene_gt, write_scene_gt_info,
 };
 
 /// The paper's two kinds of synthetic dataset.
@@ -235,7 +234,8 @@ fn write_models(
 
 /// Renders `options.frames` frames of each of `objects` into `split` of `dataset` (object ids
 /// from 1 in the order given; object `k`'s frames fill consecutive scenes), skipping complete
-/// scenes. `progress` advances by one per frame.
+/// scenes. `progress` is told the split's frame count, then advances by one per frame (a
+/// complete scene's frames at once).
 ///
 /// Errors: no objects, no frames, a `split` that is not a plain folder name, a folder holding
 /// another dataset or a split generated with other options (see [`SYNTH_OPTIONS_FILE`]),
@@ -245,7 +245,7 @@ pub fn synthesize(
     split: &str,
     objects: &[SynthObject],
     options: &SynthOptions,
-    progress: &ProgressBar,
+    progress: &dyn Progress,
 ) -> Result<SynthSummary, SynthError> {
     if objects.is_empty() {
         return Err(SynthError::option("objects", "at least one object"));
@@ -260,6 +260,7 @@ pub fn synthesize(
     let started = Instant::now();
     write_models(dataset, split, objects, options)?;
     let scenes_per_object = options.frames.div_ceil(options.frames_per_scene);
+    progress.set_total((options.frames * objects.len()) as u64, 0);
     let (mut rendered, mut repaired) = (0, 0);
     for (k, object) in objects.iter().enumerate() {
         let renderer = FrameRenderer::new(&object.mesh)?;
@@ -284,7 +285,7 @@ pub fn synthesize(
             let scene = dataset.scene(split, scene_id);
             if scene.gt_info_path().exists() {
                 if scene_complete(&scene, count) {
-                    progress.inc(count as u64);
+                    progress.advance(count as u64);
                     continue;
                 }
                 repaired += 1;
@@ -298,7 +299,7 @@ pub fn synthesize(
                     let frame =
                         renderer.render(&options.camera.camera, &options.view, &style, &mut rng)?;
                     write_frame(&scene, im_id, &frame, &options.camera)?;
-                    progress.inc(1);
+                    progress.advance(1);
                     Ok((
                         im_id,
                         GtInstance {
