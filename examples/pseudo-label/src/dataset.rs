@@ -270,46 +270,8 @@ pub fn label_dataset(
     options.validate()?;
     dataset.check_models()?;
     let started = Instant::now();
-    let shard = dataset_options.shard;
-    let all_scenes = dataset.scene_ids(&dataset_options.split)?;
-    if all_scenes.is_empty() {
-        return Err(FileError::new(
-            &dataset.root.join(&dataset_options.split),
-            "folder",
-            "no scene folders (six-digit names such as 000001)",
-        )
-        .into());
-    }
-    let scene_ids: Vec<u32> = all_scenes
-        .into_iter()
-        .enumerate()
-        .filter(|(k, _)| k % shard.count == shard.index)
-        .map(|(_, id)| id)
-        .collect();
-    let options_path = dataset
-        .root
-        .join(&dataset_options.split)
-        .join(LABEL_OPTIONS_FILE);
-    let recorded = recorded_options(dataset, dataset_options, options);
-    if dataset_options.relabel {
-        for &scene_id in &scene_ids {
-            let path = dataset
-                .scene(&dataset_options.split, scene_id)
-                .pseudo_gt_path();
-            if path.exists() {
-                std::fs::remove_file(&path)
-                    .map_err(|e| FileError::new(&path, "file", format!("cannot remove: {e}")))?;
-            }
-        }
-    } else {
-        check_recorded(
-            &options_path,
-            &recorded,
-            "rerun with the same options to complete the split, or add --relabel to label it \
-             again with these",
-        )?;
-    }
-    write_json(&options_path, &recorded)?;
+    let scene_ids = shard_scenes(dataset, dataset_options)?;
+    record_options(dataset, dataset_options, options, &scene_ids)?;
     let mut summary = LabelSummary {
         scenes: scene_ids.len(),
         ..LabelSummary::default()
@@ -331,36 +293,8 @@ pub fn label_dataset(
                 );
             }
         }
-        let cameras = read_scene_camera(&scene.camera_path())?;
-        let labelled: Vec<(u32, Vec<Outcome>)> = instances
-            .par_iter()
-            .map(|(&im_id, obj_ids)| {
-                let result = match cameras.get(&im_id) {
-                    Some(intrinsics) => {
-                        label_image(&scene, im_id, intrinsics, obj_ids, &models, options)
-                    }
-                    None => failed_image(
-                        obj_ids,
-                        &LabelFailure::Input(format!(
-                            "{}: image {im_id} is missing",
-                            scene.camera_path().display()
-                        )),
-                    ),
-                };
-                progress.advance(1);
-                (im_id, result)
-            })
-            .collect();
-        for (instance, failure) in labelled.iter().flat_map(|(_, list)| list) {
-            summary.instances += 1;
-            summary.labels += instance.labels.len();
-            summary.warnings += usize::from(instance.warning.is_some());
-            match failure {
-                None => summary.labelled += 1,
-                Some(kind) => *summary.failures.entry(kind).or_default() += 1,
-            }
-        }
-        summary.images += labelled.len();
+        let labelled = label_scene(&scene, &instances, &models, options, progress)?;
+        summary.count(&labelled);
         let labelled = labelled
             .into_iter()
             .map(|(im_id, list)| (im_id, list.into_iter().map(|(i, _)| i).collect()))
@@ -369,6 +303,111 @@ pub fn label_dataset(
     }
     summary.seconds = started.elapsed().as_secs_f64();
     Ok(summary)
+}
+
+/// The scenes of `dataset_options.split` in this job's shard; an error when the split has
+/// none.
+fn shard_scenes(
+    dataset: &BopDataset,
+    dataset_options: &DatasetOptions,
+) -> Result<Vec<u32>, LabelError> {
+    let shard = dataset_options.shard;
+    let all_scenes = dataset.scene_ids(&dataset_options.split)?;
+    if all_scenes.is_empty() {
+        return Err(FileError::new(
+            &dataset.root.join(&dataset_options.split),
+            "folder",
+            "no scene folders (six-digit names such as 000001)",
+        )
+        .into());
+    }
+    Ok(all_scenes
+        .into_iter()
+        .enumerate()
+        .filter(|(k, _)| k % shard.count == shard.index)
+        .map(|(_, id)| id)
+        .collect())
+}
+
+/// Records the options in the split's [`LABEL_OPTIONS_FILE`]: after discarding the labels of
+/// `scene_ids` when relabelling, else after refusing options other than those recorded.
+fn record_options(
+    dataset: &BopDataset,
+    dataset_options: &DatasetOptions,
+    options: &LabelOptions,
+    scene_ids: &[u32],
+) -> Result<(), LabelError> {
+    let options_path = dataset
+        .root
+        .join(&dataset_options.split)
+        .join(LABEL_OPTIONS_FILE);
+    let recorded = recorded_options(dataset, dataset_options, options);
+    if dataset_options.relabel {
+        for &scene_id in scene_ids {
+            let path = dataset
+                .scene(&dataset_options.split, scene_id)
+                .pseudo_gt_path();
+            if path.exists() {
+                std::fs::remove_file(&path)
+                    .map_err(|e| FileError::new(&path, "file", format!("cannot remove: {e}")))?;
+            }
+        }
+    } else {
+        check_recorded(
+            &options_path,
+            &recorded,
+            "rerun with the same options to complete the split, or add --relabel to label it \
+             again with these",
+        )?;
+    }
+    write_json(&options_path, &recorded)?;
+    Ok(())
+}
+
+/// The labels of every image of `scene` (in parallel), `instances` giving the object id of
+/// each of its instances by image id; `progress` advances by one per image.
+fn label_scene(
+    scene: &SceneDir,
+    instances: &BTreeMap<u32, Vec<u32>>,
+    models: &BTreeMap<u32, Option<Arc<ObjectModel>>>,
+    options: &LabelOptions,
+    progress: &dyn Progress,
+) -> Result<Vec<(u32, Vec<Outcome>)>, LabelError> {
+    let cameras = read_scene_camera(&scene.camera_path())?;
+    Ok(instances
+        .par_iter()
+        .map(|(&im_id, obj_ids)| {
+            let result = match cameras.get(&im_id) {
+                Some(intrinsics) => label_image(scene, im_id, intrinsics, obj_ids, models, options),
+                None => failed_image(
+                    obj_ids,
+                    &LabelFailure::Input(format!(
+                        "{}: image {im_id} is missing",
+                        scene.camera_path().display()
+                    )),
+                ),
+            };
+            progress.advance(1);
+            (im_id, result)
+        })
+        .collect())
+}
+
+impl LabelSummary {
+    /// Counts the images, instances, labels, warnings and failures of a scene's `labelled`
+    /// images.
+    fn count(&mut self, labelled: &[(u32, Vec<Outcome>)]) {
+        for (instance, failure) in labelled.iter().flat_map(|(_, list)| list) {
+            self.instances += 1;
+            self.labels += instance.labels.len();
+            self.warnings += usize::from(instance.warning.is_some());
+            match failure {
+                None => self.labelled += 1,
+                Some(kind) => *self.failures.entry(kind).or_default() += 1,
+            }
+        }
+        self.images += labelled.len();
+    }
 }
 
 /// An instance's pseudo labels and, when labelling failed, the kind of failure.

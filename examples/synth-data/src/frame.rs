@@ -204,9 +204,58 @@ impl FrameRenderer {
         let pose = camera_from_world * world_from_object;
         let mut instances = vec![Instance::new(0, pose), Instance::new(1, camera_from_world)];
         let mut materials = vec![style.material.clone(), Material::Uniform([0.55, 0.5, 0.45])];
+        let others =
+            self.place_others(style, (&world_from_object, (x, y)), &camera_from_world, rng);
+        for (instance, material) in others {
+            instances.push(instance);
+            materials.push(material);
+        }
+        let full = Window::full(camera);
+        let rendering = self.scene.render(camera, &instances, full)?;
+        let rgb = self.scene.shade(
+            camera,
+            &instances,
+            &materials,
+            &Lighting::default(),
+            &rendering,
+        )?;
+        let mask_visib: Vec<bool> = rendering.instance.iter().map(|&i| i == Some(0)).collect();
+        let mask = self.silhouette(camera, &pose)?;
+        let width = camera.width as usize;
+        let depth = match &style.sensor {
+            Some(sensor) => sensor.apply(&rendering.depth, camera, rng.random()),
+            None => rendering.depth,
+        };
+        // The boxes and pixel counts are the true masks'.
+        let info = gt_info(&mask, &mask_visib, &depth, width);
+        let mask_visib = match &style.mask_errors {
+            Some(errors) => errors.apply(&mask_visib, width, rng.random()),
+            None => mask_visib,
+        };
+        Ok(Frame {
+            rgb,
+            depth,
+            mask,
+            mask_visib,
+            pose,
+            info,
+        })
+    }
+
+    /// The distractors and occluders of a frame (`style`), placed on the table around the
+    /// object (its table pose and origin) seen by `camera_from_world`: each one's instance and
+    /// random flat colour.
+    fn place_others<R: Rng>(
+        &self,
+        style: &FrameStyle,
+        (world_from_object, (x, y)): (&Isometry3<f64>, (f64, f64)),
+        camera_from_world: &Isometry3<f64>,
+        rng: &mut R,
+    ) -> Vec<(Instance, Material)> {
         // The camera's direction from the object, on the table.
         let eye = camera_from_world.inverse() * Point3::origin();
         let towards_camera = (eye.y - y).atan2(eye.x - x);
+        let mut others = Vec::with_capacity(style.distractors + style.occluders);
         for k in 0..style.distractors + style.occluders {
             // Distractors are the small shapes; occluders those or the panel.
             let kinds = DISTRACTORS.len() + usize::from(k >= style.distractors);
@@ -227,31 +276,33 @@ impl FrameRenderer {
             });
             let placed = place_beside(
                 (&standing, corners),
-                (&world_from_object, &self.corners),
+                (world_from_object, &self.corners),
                 (x, y),
                 angle,
                 reach,
             );
-            instances.push(Instance::new(2 + kind, camera_from_world * placed));
-            materials.push(Material::Uniform(std::array::from_fn(|_| {
-                0.2 + 0.7 * rng.random::<f32>()
-            })));
+            let colour = std::array::from_fn(|_| 0.2 + 0.7 * rng.random::<f32>());
+            others.push((
+                Instance::new(2 + kind, camera_from_world * placed),
+                Material::Uniform(colour),
+            ));
         }
-        let full = Window::full(camera);
-        let rendering = self.scene.render(camera, &instances, full)?;
-        let rgb = self.scene.shade(
+        others
+    }
+
+    /// The object's full silhouette at `pose` (nothing in front of it), over the whole image.
+    fn silhouette(
+        &self,
+        camera: &PinholeCamera,
+        pose: &Isometry3<f64>,
+    ) -> Result<Vec<bool>, SynthError> {
+        let alone = self.scene.render(
             camera,
-            &instances,
-            &materials,
-            &Lighting::default(),
-            &rendering,
+            &[Instance::new(0, *pose)],
+            self.window(camera, pose),
         )?;
-        let mask_visib: Vec<bool> = rendering.instance.iter().map(|&i| i == Some(0)).collect();
-        let alone = self
-            .scene
-            .render(camera, &instances[..1], self.window(camera, &pose))?;
-        let mut mask = vec![false; mask_visib.len()];
         let width = camera.width as usize;
+        let mut mask = vec![false; width * camera.height as usize];
         let window_width = alone.window.width() as usize;
         for (i, hit) in alone.instance.iter().enumerate() {
             if hit.is_some() {
@@ -262,24 +313,7 @@ impl FrameRenderer {
                 mask[v * width + u] = true;
             }
         }
-        let depth = match &style.sensor {
-            Some(sensor) => sensor.apply(&rendering.depth, camera, rng.random()),
-            None => rendering.depth,
-        };
-        // The boxes and pixel counts are the true masks'.
-        let info = gt_info(&mask, &mask_visib, &depth, width);
-        let mask_visib = match &style.mask_errors {
-            Some(errors) => errors.apply(&mask_visib, width, rng.random()),
-            None => mask_visib,
-        };
-        Ok(Frame {
-            rgb,
-            depth,
-            mask,
-            mask_visib,
-            pose,
-            info,
-        })
+        Ok(mask)
     }
 
     /// The pixels the object's bounding box projects to (the whole image when part of it is
