@@ -32,10 +32,32 @@ fn fixture() -> PathBuf {
 /// the marker, the two clamps and the foam brick.
 const BOP_SYMMETRIC: [u32; 8] = [1, 13, 14, 16, 18, 19, 20, 21];
 
-/// Best labels correct by ADD(-S): all but the cracker box (turned over), the sugar box (cut
-/// by the border) and the first mustard bottle (turned about its axis, which the scan cannot
-/// tell apart but BOP evaluates with ADD); see the README's real-frame table.
+/// Best labels a correct labeller must get right by ADD(-S), BOP's criterion (under 10% of the
+/// diameter): all 11 but three it cannot. The cracker box, whose scan is not symmetric but
+/// whose view is: its pose turned over explains the depth better than the truth (scores 0.74
+/// against 0.86), so the best label is the turned one, 168 mm off by ADD. The sugar box,
+/// whose ground truth is off: it explains 81% of the box's depth within 5 mm, each label 99%,
+/// and the labels lie 22 mm from it, more than 10% of its diameter (19.9 mm). The first
+/// mustard bottle, whose 180° turn about its axis is a symmetry of the scan at the sensor's
+/// resolution (`SOURCES.md`) but not in BOP's evaluation with ADD: either pose may come first.
+/// The mug's and the foam brick's turned poses count as correct: BOP evaluates them with
+/// ADD-S. See the README's real-frame table.
 const ADD_CORRECT: usize = 8;
+
+/// Best labels a correct labeller must place within 5° and 10 mm of a true pose of the
+/// geometric symmetry group: all 11 but four where the view, not the labeller, decides. The
+/// mug with its handle hidden (any turn about its axis looks the same, so the best label is
+/// one of them), the foam brick (the scan is not symmetric, but its square section is: the
+/// turned pose looks the same), the cracker box (turned over, preferred by the depth) and the
+/// sugar box (its ground truth is off by 22 mm).
+const BEST_NEAR: usize = 7;
+
+/// Label sets a correct labeller must make hold a pose within 5° and 10 mm: all 11 but three.
+/// The mug (its labels sample the turns about its axis; nothing makes one fall within 5° of
+/// the hidden truth), the cracker box (the truth scores 0.12 worse than the turned pose, more
+/// than the 0.1 margin, so it is not a label) and the sugar box (ground truth off). The foam
+/// brick's set holds both of its look-alike poses.
+const ANY_NEAR: usize = 8;
 
 /// One label's errors against the ground truth.
 #[derive(Debug, Clone, Copy)]
@@ -131,6 +153,7 @@ fn label_and_score(root: &Path) -> Vec<Scored> {
             let intrinsics = &cameras[im_id];
             let depth = read_depth(&scene.depth_path(*im_id), intrinsics.depth_scale).unwrap();
             let camera = intrinsics.camera(depth.width, depth.height).unwrap().camera;
+            assert_eq!(labels[im_id].len(), instances.len(), "scene {scene_id}");
             for (gt, found) in instances.iter().zip(&labels[im_id]) {
                 assert!(found.error.is_none(), "scene {scene_id}: {found:?}");
                 let mesh = load_mesh(&dataset.model_path(gt.obj_id), 0.001)
@@ -222,13 +245,16 @@ fn real_frames_are_all_labelled_and_their_labels_show_the_true_surface() {
         .iter()
         .filter(|s| s.errors[0].near_a_symmetric_pose())
         .count();
-    assert!(best >= 7, "{best} of 11 best labels within 5° and 10 mm");
+    assert!(
+        best >= BEST_NEAR,
+        "{best} of 11 best labels within 5° and 10 mm"
+    );
     let any = scored
         .iter()
         .filter(|s| s.errors.iter().any(Errors::near_a_symmetric_pose))
         .count();
     assert!(
-        any >= 8,
+        any >= ANY_NEAR,
         "{any} of 11 label sets hold a pose within 5° and 10 mm"
     );
     // BOP's ADD(-S) criterion on the best label, and on any label of the set.

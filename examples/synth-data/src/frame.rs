@@ -535,11 +535,23 @@ mod tests {
             mean(&in_front) < mean(&around) - 0.05,
             "{around:?} {in_front:?}"
         );
+        // The floor: each occluder is the panel one time in four (one of four shapes), so
+        // about 24 · (1 − (3/4)²) ≈ 10 of the frames have one. Standing about 10 cm in front of
+        // the bowl and 185 mm tall (1.6 times the bowl's bounding radius, 115 mm, which is its
+        // width), it hides the middle of the 53 mm bowl from cameras below about 58° of
+        // elevation (26 mm + 100 mm · tan 58° = 185 mm): two thirds of the 15–80° drawn, about 7
+        // frames, each hiding well over 30% of the bowl. At least 3 leaves room for panels
+        // turned aside (±20° of the line of sight) and for the draws.
         assert!(
             in_front.iter().filter(|&&v| v < 0.7).count() >= 3,
             "{in_front:?}"
         );
-        // The panel hides even the tall box (21 cm) to under 45% at times.
+        // The panel hides even the tall box (21 cm) to under 45% at times. The floor: as above,
+        // about 10 of 24 frames have a panel (135 mm wide, 216 mm tall for the box), which
+        // stands between the camera and the middle of the box (lying, 60 mm tall, or on its
+        // side, 158 mm, about 13 cm in front) below about 55° of elevation, in about 6 frames;
+        // it hides over 55% of the box only where it covers the box's width too (its 135 mm
+        // against the 158–210 mm sides seen broadside), say a third of those: at least 2.
         let tall = visible_fractions(crate::ObjectKind::Box, 0, 2);
         assert!(tall.iter().filter(|&&v| v < 0.45).count() >= 2, "{tall:?}");
     }
