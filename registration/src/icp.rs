@@ -658,59 +658,30 @@ mod tests {
         let (cloud, _) = patch();
         let index = PointIndex::from_points(cloud.points());
         assert!(IcpOptions::default().validate().is_ok());
-        let bad = [
-            (
-                "max_correspondence_distance",
-                IcpOptions {
-                    max_correspondence_distance: 0.0,
-                    ..IcpOptions::default()
-                },
-            ),
-            (
-                "kernel",
-                IcpOptions {
-                    kernel: Some(RobustKernel::Huber(0.0)),
-                    ..IcpOptions::default()
-                },
-            ),
-            (
-                "kernel",
-                IcpOptions {
-                    kernel: Some(RobustKernel::Cauchy(f64::NAN)),
-                    ..IcpOptions::default()
-                },
-            ),
-            (
-                "min_eigen_ratio",
-                IcpOptions {
-                    min_eigen_ratio: 1.0,
-                    ..IcpOptions::default()
-                },
-            ),
-            (
-                "min_eigen_ratio",
-                IcpOptions {
-                    min_eigen_ratio: -0.1,
-                    ..IcpOptions::default()
-                },
-            ),
-            (
-                "max_normal_angle",
-                IcpOptions {
-                    max_normal_angle: Some(-0.1),
-                    ..IcpOptions::default()
-                },
-            ),
-            (
-                "max_normal_angle",
-                IcpOptions {
-                    max_normal_angle: Some(f32::INFINITY),
-                    ..IcpOptions::default()
-                },
-            ),
+        // Each option named with a change of the defaults that puts it out of range.
+        type Spoil = fn(&mut IcpOptions);
+        let bad: [(&str, Spoil); 7] = [
+            ("max_correspondence_distance", |o| {
+                o.max_correspondence_distance = 0.0
+            }),
+            ("kernel", |o| o.kernel = Some(RobustKernel::Huber(0.0))),
+            ("kernel", |o| {
+                o.kernel = Some(RobustKernel::Cauchy(f64::NAN))
+            }),
+            ("min_eigen_ratio", |o| o.min_eigen_ratio = 1.0),
+            ("min_eigen_ratio", |o| o.min_eigen_ratio = -0.1),
+            ("max_normal_angle", |o| o.max_normal_angle = Some(-0.1)),
+            ("max_normal_angle", |o| {
+                o.max_normal_angle = Some(f32::INFINITY)
+            }),
         ];
-        for (name, options) in bad {
-            let refused = |result: Result<_, RegistrationError>| matches!(result, Err(RegistrationError::InvalidOption { name: n, .. }) if n == name);
+        for (name, spoil) in bad {
+            let mut options = IcpOptions::default();
+            spoil(&mut options);
+            let refused = |result: Result<(), RegistrationError>| match result {
+                Err(RegistrationError::InvalidOption { name: named, .. }) => named == name,
+                _ => false,
+            };
             assert!(refused(options.validate()), "{options:?}");
             // The cloud has no normals: a check of the options after the normals' would fail
             // with MissingNormals instead.

@@ -15,7 +15,7 @@
 //!                           mask/ and mask_visib/{im_id:06}_{inst:06}.png
 //! ```
 //!
-//! - [`BopDataset`] and [`SceneDir`]: where each file lies.
+//! - [`BopDataset`] and [`SceneDir`]: where each file lies; [`copy_dataset`] copies one.
 //! - One reader and one writer per file: [`read_models_info`] / [`write_models_info`]
 //!   ([`ModelInfo`] with its symmetry group), [`read_scene_camera`], [`read_scene_gt`],
 //!   [`read_scene_gt_info`], [`read_pseudo_gt`] and their `write_*` twins, [`write_mesh_ply`].
@@ -69,7 +69,7 @@ pub use images::{
 pub use json::{
     BopCamera, Intrinsics, camera_from_json, pose_from_json, pose_to_json, read_json, read_json_as,
 };
-pub use layout::{BopDataset, SceneDir};
+pub use layout::{BopDataset, SceneDir, copy_dataset};
 pub use models::{ModelInfo, read_models_info, write_mesh_ply, write_models_info};
 pub use progress::Progress;
 pub use pseudo_gt::{PseudoInstance, PseudoLabel, read_pseudo_gt, write_pseudo_gt};

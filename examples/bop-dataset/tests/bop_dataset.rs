@@ -292,3 +292,33 @@ fn malformed_files_name_the_file_and_the_key() {
             .contains("absent.json")
     );
 }
+
+#[test]
+fn a_dataset_is_copied_file_for_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let copy = dir.path().join("copy");
+    bop_dataset::copy_dataset(&fixture(), &copy).unwrap();
+    let files = |root: &Path| {
+        let mut found = BTreeMap::new();
+        let mut folders = vec![root.to_path_buf()];
+        while let Some(folder) = folders.pop() {
+            for entry in std::fs::read_dir(folder).unwrap() {
+                let path = entry.unwrap().path();
+                if path.is_dir() {
+                    folders.push(path);
+                } else {
+                    let name = path.strip_prefix(root).unwrap().to_path_buf();
+                    found.insert(name, std::fs::read(&path).unwrap());
+                }
+            }
+        }
+        found
+    };
+    let (original, copied) = (files(&fixture()), files(&copy));
+    // tests/data/tless_layout: 4 files outside its scene folder, 13 in it.
+    assert_eq!(original.len(), 17);
+    assert!(original == copied);
+    let missing = dir.path().join("absent");
+    let error = bop_dataset::copy_dataset(&missing, &dir.path().join("other")).unwrap_err();
+    assert_eq!(error.path, missing);
+}

@@ -7,18 +7,9 @@ use std::path::Path;
 use bop_dataset::BopDataset;
 use pseudo_label::{DatasetOptions, LabelError, LabelOptions, LabelSummary, Shard, label_dataset};
 
-/// Copies the folder `from` into `to`, recursively.
+/// Copies the fixture folder `from` into `to`.
 pub fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for entry in std::fs::read_dir(from).unwrap() {
-        let entry = entry.unwrap();
-        let target = to.join(entry.file_name());
-        if entry.path().is_dir() {
-            copy_dir(&entry.path(), &target);
-        } else {
-            std::fs::copy(entry.path(), target).unwrap();
-        }
-    }
+    bop_dataset::copy_dataset(from, to).unwrap();
 }
 
 /// Labels every scene of `split` of `dataset` with `options`, as `ipdf label --split split`
