@@ -37,45 +37,8 @@ pub fn load_mesh(path: &Path, scale: f64) -> Result<LoadedMesh, RenderError> {
     let Some(polygons) = &raw.polygons else {
         return Err(file_error(path, "face", "missing".into()));
     };
-    let positions: Vec<Point3<f32>> = raw
-        .positions
-        .iter()
-        .map(|p| (p * scale).cast::<f32>())
-        .collect();
-    if let Some(vertex) = positions
-        .iter()
-        .position(|p| p.iter().any(|c| !c.is_finite()))
-    {
-        let error = RenderError::NonFiniteVertex { vertex };
-        return Err(file_error(
-            path,
-            &format!("vertex[{vertex}]"),
-            error.to_string(),
-        ));
-    }
-    let mut triangles = Vec::new();
-    for (face, polygon) in polygons.iter().enumerate() {
-        if polygon.len() < 3 {
-            return Err(file_error(
-                path,
-                &format!("face[{face}]"),
-                format!("has {} vertices", polygon.len()),
-            ));
-        }
-        if let Some(&index) = polygon.iter().find(|&&i| i as usize >= positions.len()) {
-            return Err(file_error(
-                path,
-                &format!("face[{face}]"),
-                format!(
-                    "refers to vertex {index}, but there are {} vertices",
-                    positions.len()
-                ),
-            ));
-        }
-        for k in 1..polygon.len() - 1 {
-            triangles.push([polygon[0], polygon[k], polygon[k + 1]]);
-        }
-    }
+    let positions = scaled_positions(path, &raw.positions, scale)?;
+    let triangles = triangulate(path, polygons, positions.len())?;
     let (parts, repairs, original_vertex) = repair(MeshParts {
         positions,
         triangles,
@@ -90,6 +53,74 @@ pub fn load_mesh(path: &Path, scale: f64) -> Result<LoadedMesh, RenderError> {
             format!("no triangle of non-zero area ({repairs})"),
         ));
     }
+    let mesh = mesh_from_parts(path, parts, &original_vertex)?;
+    Ok(LoadedMesh { mesh, repairs })
+}
+
+/// The file's vertex `positions` times `scale`, in f32; an error naming the first that is not
+/// finite.
+fn scaled_positions(
+    path: &Path,
+    positions: &[Point3<f64>],
+    scale: f64,
+) -> Result<Vec<Point3<f32>>, RenderError> {
+    let positions: Vec<Point3<f32>> = positions
+        .iter()
+        .map(|p| (p * scale).cast::<f32>())
+        .collect();
+    if let Some(vertex) = positions
+        .iter()
+        .position(|p| p.iter().any(|c| !c.is_finite()))
+    {
+        let error = RenderError::NonFiniteVertex { vertex };
+        return Err(file_error(
+            path,
+            &format!("vertex[{vertex}]"),
+            error.to_string(),
+        ));
+    }
+    Ok(positions)
+}
+
+/// The `polygons` of a file with `vertices` vertices as fans of triangles; an error naming the
+/// first face with fewer than 3 vertices or an index out of range.
+fn triangulate(
+    path: &Path,
+    polygons: &[Vec<u32>],
+    vertices: usize,
+) -> Result<Vec<[u32; 3]>, RenderError> {
+    let mut triangles = Vec::new();
+    for (face, polygon) in polygons.iter().enumerate() {
+        if polygon.len() < 3 {
+            return Err(file_error(
+                path,
+                &format!("face[{face}]"),
+                format!("has {} vertices", polygon.len()),
+            ));
+        }
+        if let Some(&index) = polygon.iter().find(|&&i| i as usize >= vertices) {
+            return Err(file_error(
+                path,
+                &format!("face[{face}]"),
+                format!("refers to vertex {index}, but there are {vertices} vertices"),
+            ));
+        }
+        for k in 1..polygon.len() - 1 {
+            triangles.push([polygon[0], polygon[k], polygon[k + 1]]);
+        }
+    }
+    Ok(triangles)
+}
+
+/// The mesh of repaired `parts`, with their attributes. Indices, coordinates and areas were
+/// checked or repaired before: what is left to refuse is an attribute (a colour outside
+/// [0, 1], a non-finite texture coordinate), named by the file's vertex index
+/// (`original_vertex` maps a repaired vertex to it).
+fn mesh_from_parts(
+    path: &Path,
+    parts: MeshParts,
+    original_vertex: &[usize],
+) -> Result<TriangleMesh, RenderError> {
     let with_attributes = |mesh: TriangleMesh| -> Result<TriangleMesh, RenderError> {
         let mut mesh = mesh;
         if let Some(normals) = parts.normals {
@@ -103,10 +134,7 @@ pub fn load_mesh(path: &Path, scale: f64) -> Result<LoadedMesh, RenderError> {
         }
         Ok(mesh)
     };
-    // Indices, coordinates and areas were checked or repaired above: what is left to refuse
-    // is an attribute (a colour outside [0, 1], a non-finite texture coordinate), named by the
-    // file's vertex index.
-    let mesh = TriangleMesh::new(parts.positions, parts.triangles)
+    TriangleMesh::new(parts.positions, parts.triangles)
         .and_then(with_attributes)
         .map_err(|error| {
             let field = match &error {
@@ -119,8 +147,7 @@ pub fn load_mesh(path: &Path, scale: f64) -> Result<LoadedMesh, RenderError> {
                 _ => "mesh".into(),
             };
             file_error(path, &field, error.to_string())
-        })?;
-    Ok(LoadedMesh { mesh, repairs })
+        })
 }
 
 /// The vertices of a PLY or OBJ file (a point cloud, or a mesh's vertices), in metres.

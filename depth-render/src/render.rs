@@ -1,5 +1,7 @@
 //! Scenes of posed meshes rendered into depth, instance and triangle maps, tile by tile in
 //! parallel (see [`crate::tile_cast`] for the ray casting itself).
+use std::ops::Range;
+
 use nalgebra::Isometry3;
 use rayon::prelude::*;
 
@@ -78,6 +80,40 @@ pub struct Rendering {
     pub triangle: Vec<u32>,
 }
 
+/// A band of rows of a [`Rendering`]'s maps, each row-major.
+struct Band<'a> {
+    depth: &'a mut [f32],
+    instance: &'a mut [Option<u16>],
+    triangle: &'a mut [u32],
+}
+
+/// The pixel centres of a window as ray directions: `x/z` of each column, `y/z` of each row.
+struct WindowRays {
+    window: Window,
+    xs: Vec<f32>,
+    ys: Vec<f32>,
+    /// Focal lengths and principal point, to bound triangles' projections.
+    intrinsics: [f32; 4],
+}
+
+impl WindowRays {
+    fn new(camera: &PinholeCamera, window: Window) -> Self {
+        let xs: Vec<f32> = (window.u0..window.u1)
+            .map(|u| ((f64::from(u) - camera.cx) / camera.fx) as f32)
+            .collect();
+        let ys: Vec<f32> = (window.v0..window.v1)
+            .map(|v| ((f64::from(v) - camera.cy) / camera.fy) as f32)
+            .collect();
+        let intrinsics = [camera.fx, camera.fy, camera.cx, camera.cy].map(|c| c as f32);
+        Self {
+            window,
+            xs,
+            ys,
+            intrinsics,
+        }
+    }
+}
+
 /// Meshes with their BVHs, built once and rendered at any number of poses.
 pub struct Scene {
     meshes: Vec<TriangleMesh>,
@@ -129,13 +165,7 @@ impl Scene {
                 triangle,
             });
         }
-        let xs: Vec<f32> = (window.u0..window.u1)
-            .map(|u| ((f64::from(u) - camera.cx) / camera.fx) as f32)
-            .collect();
-        let ys: Vec<f32> = (window.v0..window.v1)
-            .map(|v| ((f64::from(v) - camera.cy) / camera.fy) as f32)
-            .collect();
-        let intrinsics = [camera.fx, camera.fy, camera.cx, camera.cy].map(|c| c as f32);
+        let rays = WindowRays::new(camera, window);
         let band = width * TILE;
         depth
             .par_chunks_mut(band)
@@ -144,35 +174,12 @@ impl Scene {
             .enumerate()
             .for_each(|(b, ((depth, instance), triangle))| {
                 let rows = b * TILE..(b * TILE + TILE).min(height);
-                let mut stack = Vec::with_capacity(64);
-                for columns in (0..width).step_by(TILE).map(|c| c..(c + TILE).min(width)) {
-                    let tile = Tile {
-                        origin: (
-                            window.u0 + columns.start as u32,
-                            window.v0 + rows.start as u32,
-                        ),
-                        xs: &xs[columns.clone()],
-                        ys: &ys[rows.clone()],
-                        intrinsics,
-                    };
-                    let mut hits = TileHits::new();
-                    for (k, (placed, placement)) in instances.iter().zip(&placements).enumerate() {
-                        let bvh = &self.bvhs[placed.mesh];
-                        cast_tile(bvh, placement, k as u16, &tile, &mut hits, &mut stack);
-                    }
-                    let tile_width = columns.len();
-                    for (r, row) in rows.clone().enumerate() {
-                        let out = (row - rows.start) * width + columns.start;
-                        for c in 0..tile_width {
-                            let t = r * tile_width + c;
-                            if hits.depth[t].is_finite() {
-                                depth[out + c] = hits.depth[t];
-                                instance[out + c] = Some(hits.instance[t]);
-                                triangle[out + c] = hits.triangle[t];
-                            }
-                        }
-                    }
-                }
+                let band = Band {
+                    depth,
+                    instance,
+                    triangle,
+                };
+                self.render_band(instances, &placements, &rays, rows, band);
             });
         Ok(Rendering {
             window,
@@ -180,6 +187,53 @@ impl Scene {
             instance,
             triangle,
         })
+    }
+
+    /// Renders the `rows` of the window into `band`: tile by tile, each tile against every
+    /// instance.
+    fn render_band(
+        &self,
+        instances: &[Instance],
+        placements: &[Placement],
+        rays: &WindowRays,
+        rows: Range<usize>,
+        band: Band<'_>,
+    ) {
+        let Band {
+            depth,
+            instance,
+            triangle,
+        } = band;
+        let width = rays.xs.len();
+        let mut stack = Vec::with_capacity(64);
+        for columns in (0..width).step_by(TILE).map(|c| c..(c + TILE).min(width)) {
+            let tile = Tile {
+                origin: (
+                    rays.window.u0 + columns.start as u32,
+                    rays.window.v0 + rows.start as u32,
+                ),
+                xs: &rays.xs[columns.clone()],
+                ys: &rays.ys[rows.clone()],
+                intrinsics: rays.intrinsics,
+            };
+            let mut hits = TileHits::new();
+            for (k, (placed, placement)) in instances.iter().zip(placements).enumerate() {
+                let bvh = &self.bvhs[placed.mesh];
+                cast_tile(bvh, placement, k as u16, &tile, &mut hits, &mut stack);
+            }
+            let tile_width = columns.len();
+            for (r, row) in rows.clone().enumerate() {
+                let out = (row - rows.start) * width + columns.start;
+                for c in 0..tile_width {
+                    let t = r * tile_width + c;
+                    if hits.depth[t].is_finite() {
+                        depth[out + c] = hits.depth[t];
+                        instance[out + c] = Some(hits.instance[t]);
+                        triangle[out + c] = hits.triangle[t];
+                    }
+                }
+            }
+        }
     }
 
     /// Rejects instances naming unknown meshes, with non-finite poses, or too many of them.

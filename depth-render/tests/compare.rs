@@ -171,13 +171,21 @@ proptest! {
         let observed: Vec<f32> = pixels.iter().map(|p| p.0).collect();
         let a: Vec<f32> = pixels.iter().map(|p| p.1).collect();
         let b: Vec<f32> = pixels.iter().map(|p| p.2).collect();
+        // As documented: a rendered pixel is visible where the observed depth is missing or
+        // lies no nearer than `delta` in front of it; VSD is `None` only when no pixel is
+        // visible under either pose.
+        let visible = |rendered: f32, observed: f32| {
+            rendered > 0.0 && (observed <= 0.0 || rendered - observed <= delta)
+        };
+        let seen_a = pixels.iter().any(|p| visible(p.1, p.0));
+        let seen_b = pixels.iter().any(|p| visible(p.2, p.0));
         let ab = visible_surface_discrepancy(&observed, &a, &b, delta, tau);
         prop_assert_eq!(ab, visible_surface_discrepancy(&observed, &b, &a, delta, tau));
+        prop_assert_eq!(ab.is_some(), seen_a || seen_b);
         if let Some(error) = ab {
             prop_assert!((0.0..=1.0).contains(&error));
         }
-        if let Some(same) = visible_surface_discrepancy(&observed, &a, &a, delta, tau) {
-            prop_assert_eq!(same, 0.0);
-        }
+        let same = visible_surface_discrepancy(&observed, &a, &a, delta, tau);
+        prop_assert_eq!(same, seen_a.then_some(0.0));
     }
 }

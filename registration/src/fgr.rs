@@ -168,10 +168,52 @@ pub(crate) fn align_modes(
         .iter()
         .map(|p| p.cast::<f64>())
         .collect();
+    let points = (source_points.as_slice(), target_points.as_slice());
+    let pairs = tested_pairs(&candidates, points, options)?;
+    let frame = Normalisation::new(source, target, points, initial, options)?;
+    let tuple_pairs = frame.pairs(&pairs, points);
+    let (pose, _) = gauss_newton(
+        &tuple_pairs,
+        Isometry3::identity(),
+        1.0,
+        options.iteration_number,
+        options,
+    )?;
+    let mut modes = vec![FgrAlignment {
+        pose: frame.to_metres(pose),
+        candidates: candidates.len(),
+        correspondences: pairs.len(),
+    }];
+    if count > 1 {
+        let all = frame.pairs(&candidates, points);
+        let mu = final_mu(options);
+        for start in consensus_starts(&tuple_pairs, &all, mu, count - 1) {
+            if let Ok((pose, _)) =
+                gauss_newton(&all, start, mu, options.iteration_number / 4, options)
+            {
+                modes.push(FgrAlignment {
+                    pose: frame.to_metres(pose),
+                    candidates: candidates.len(),
+                    correspondences: all.len(),
+                });
+            }
+        }
+    }
+    Ok(modes)
+}
+
+/// The pairs FGR optimises over: the `candidates` that pass the tuple test (all of them
+/// without it), between the `points` of source (moved by the initial pose) and target; an
+/// error when fewer than [`MIN_CORRESPONDENCES`] are left.
+fn tested_pairs(
+    candidates: &[(u32, u32)],
+    (source_points, target_points): (&[Point3<f64>], &[Point3<f64>]),
+    options: &FgrOptions,
+) -> Result<Vec<(u32, u32)>, RegistrationError> {
     let pairs = if options.tuple_test {
-        tuple_test(&candidates, &source_points, &target_points, options)
+        tuple_test(candidates, source_points, target_points, options)
     } else {
-        candidates.clone()
+        candidates.to_vec()
     };
     if pairs.len() < MIN_CORRESPONDENCES {
         let stage = if options.tuple_test {
@@ -185,74 +227,84 @@ pub(crate) fn align_modes(
             needed: MIN_CORRESPONDENCES,
         });
     }
-    // Normalise: centre each cloud, scale both by the farthest point (paper Sec. 4).
-    let (Some(source_mean), Some(target_mean)) = (source.cloud.centroid(), target.cloud.centroid())
-    else {
-        return Err(RegistrationError::EmptyCloud {
-            cloud: "source or target",
-        });
-    };
-    let (source_mean, target_mean) = ((initial * source_mean).coords, target_mean.coords);
-    let scale = if options.use_absolute_scale {
-        1.0
-    } else {
-        let farthest = |points: &[Point3<f64>], m: Vector3<f64>| {
-            points
-                .iter()
-                .map(|p| (p.coords - m).norm())
-                .fold(0.0, f64::max)
+    Ok(pairs)
+}
+
+/// FGR's units (paper Sec. 4): each cloud centred on its centroid, both scaled by the
+/// farthest point from it (or metres with `use_absolute_scale`).
+struct Normalisation {
+    /// The source's centroid, moved by the initial pose.
+    source_mean: Vector3<f64>,
+    target_mean: Vector3<f64>,
+    /// Metres per unit.
+    scale: f64,
+    initial: Isometry3<f64>,
+}
+
+impl Normalisation {
+    /// The units of `source` (moved by `initial`) and `target`, whose `points` are given.
+    fn new(
+        source: &PreparedCloud,
+        target: &PreparedCloud,
+        (source_points, target_points): (&[Point3<f64>], &[Point3<f64>]),
+        initial: &Isometry3<f64>,
+        options: &FgrOptions,
+    ) -> Result<Self, RegistrationError> {
+        let (Some(source_mean), Some(target_mean)) =
+            (source.cloud.centroid(), target.cloud.centroid())
+        else {
+            return Err(RegistrationError::EmptyCloud {
+                cloud: "source or target",
+            });
         };
-        farthest(&source_points, source_mean)
-            .max(farthest(&target_points, target_mean))
-            .max(f64::MIN_POSITIVE)
-    };
-    let normalise = |p: &Point3<f64>, m: Vector3<f64>| (p.coords - m) / scale;
-    let normalised = |pairs: &[(u32, u32)]| -> Vec<(Vector3<f64>, Vector3<f64>)> {
+        let (source_mean, target_mean) = ((initial * source_mean).coords, target_mean.coords);
+        let scale = if options.use_absolute_scale {
+            1.0
+        } else {
+            let farthest = |points: &[Point3<f64>], m: Vector3<f64>| {
+                points
+                    .iter()
+                    .map(|p| (p.coords - m).norm())
+                    .fold(0.0, f64::max)
+            };
+            farthest(source_points, source_mean)
+                .max(farthest(target_points, target_mean))
+                .max(f64::MIN_POSITIVE)
+        };
+        Ok(Self {
+            source_mean,
+            target_mean,
+            scale,
+            initial: *initial,
+        })
+    }
+
+    /// The `pairs` (source index, target index) of `points`, in these units.
+    fn pairs(
+        &self,
+        pairs: &[(u32, u32)],
+        (source_points, target_points): (&[Point3<f64>], &[Point3<f64>]),
+    ) -> Vec<(Vector3<f64>, Vector3<f64>)> {
+        let normalise = |p: &Point3<f64>, m: Vector3<f64>| (p.coords - m) / self.scale;
         pairs
             .iter()
             .map(|&(s, t)| {
                 (
-                    normalise(&source_points[s as usize], source_mean),
-                    normalise(&target_points[t as usize], target_mean),
+                    normalise(&source_points[s as usize], self.source_mean),
+                    normalise(&target_points[t as usize], self.target_mean),
                 )
             })
             .collect()
-    };
-    let to_metres = |pose: Isometry3<f64>| {
-        // x_t = R (x_s − m_s) + scale · t̂ + m_t.
-        let translation =
-            pose.translation.vector * scale + target_mean - pose.rotation * source_mean;
-        Isometry3::from_parts(Translation3::from(translation), pose.rotation) * initial
-    };
-    let tuple_pairs = normalised(&pairs);
-    let (pose, _) = gauss_newton(
-        &tuple_pairs,
-        Isometry3::identity(),
-        1.0,
-        options.iteration_number,
-        options,
-    )?;
-    let mut modes = vec![FgrAlignment {
-        pose: to_metres(pose),
-        candidates: candidates.len(),
-        correspondences: pairs.len(),
-    }];
-    if count > 1 {
-        let all = normalised(&candidates);
-        let mu = final_mu(options);
-        for start in consensus_starts(&tuple_pairs, &all, mu, count - 1) {
-            if let Ok((pose, _)) =
-                gauss_newton(&all, start, mu, options.iteration_number / 4, options)
-            {
-                modes.push(FgrAlignment {
-                    pose: to_metres(pose),
-                    candidates: candidates.len(),
-                    correspondences: all.len(),
-                });
-            }
-        }
     }
-    Ok(modes)
+
+    /// A pose found in these units as the source → target pose in metres, the initial pose
+    /// included.
+    fn to_metres(&self, pose: Isometry3<f64>) -> Isometry3<f64> {
+        // x_t = R (x_s − m_s) + scale · t̂ + m_t.
+        let translation = pose.translation.vector * self.scale + self.target_mean
+            - pose.rotation * self.source_mean;
+        Isometry3::from_parts(Translation3::from(translation), pose.rotation) * self.initial
+    }
 }
 
 /// The μ that FGR's schedule ends at.

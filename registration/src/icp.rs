@@ -107,6 +107,44 @@ impl Default for IcpOptions {
     }
 }
 
+impl IcpOptions {
+    /// Checks every option [`refine_icp`] relies on: a positive correspondence distance, a
+    /// kernel with a positive scale, `min_eigen_ratio` in [0, 1) and a non-negative, finite
+    /// normal angle. `refine_icp` calls it first.
+    pub fn validate(&self) -> Result<(), RegistrationError> {
+        positive_metres(
+            "max_correspondence_distance",
+            self.max_correspondence_distance,
+        )?;
+        if let Some(kernel) = self.kernel
+            && !(kernel.scale().is_finite() && kernel.scale() > 0.0)
+        {
+            return Err(RegistrationError::InvalidOption {
+                name: "kernel",
+                value: kernel.scale(),
+                reason: "scale must be positive",
+            });
+        }
+        if !(0.0..1.0).contains(&self.min_eigen_ratio) {
+            return Err(RegistrationError::InvalidOption {
+                name: "min_eigen_ratio",
+                value: self.min_eigen_ratio,
+                reason: "must be at least 0 and below 1",
+            });
+        }
+        if let Some(angle) = self.max_normal_angle
+            && !(angle.is_finite() && angle >= 0.0)
+        {
+            return Err(RegistrationError::InvalidOption {
+                name: "max_normal_angle",
+                value: f64::from(angle),
+                reason: "must be a non-negative angle",
+            });
+        }
+        Ok(())
+    }
+}
+
 /// A refined alignment.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Alignment {
@@ -143,64 +181,26 @@ pub fn refine_icp(
     if target.is_empty() {
         return Err(RegistrationError::EmptyCloud { cloud: "target" });
     }
-    positive_metres(
-        "max_correspondence_distance",
-        options.max_correspondence_distance,
-    )?;
-    if let Some(kernel) = options.kernel
-        && !(kernel.scale().is_finite() && kernel.scale() > 0.0)
-    {
-        return Err(RegistrationError::InvalidOption {
-            name: "kernel",
-            value: kernel.scale(),
-            reason: "scale must be positive",
-        });
-    }
-    if !(0.0..1.0).contains(&options.min_eigen_ratio) {
-        return Err(RegistrationError::InvalidOption {
-            name: "min_eigen_ratio",
-            value: options.min_eigen_ratio,
-            reason: "must be at least 0 and below 1",
-        });
-    }
-    let normal_test = match options.max_normal_angle {
-        None => None,
-        Some(angle) => {
-            if !(angle.is_finite() && angle >= 0.0) {
-                return Err(RegistrationError::InvalidOption {
-                    name: "max_normal_angle",
-                    value: f64::from(angle),
-                    reason: "must be a non-negative angle",
-                });
-            }
-            let missing = || RegistrationError::MissingNormals {
-                stage: "ICP normal compatibility",
-            };
-            let source_normals = source.normals().ok_or_else(missing)?;
-            let target_normals = target.normals().ok_or_else(missing)?;
-            Some(NormalTest {
-                source: source_normals,
-                target: target_normals,
-                min_cosine: angle.cos(),
-            })
-        }
-    };
+    options.validate()?;
+    let normal_test = options
+        .max_normal_angle
+        .map(|angle| NormalTest::new(source, target, angle))
+        .transpose()?;
     let target_normals = match options.method {
-        IcpMethod::PointToPlane => {
-            Some(target.normals().ok_or(RegistrationError::MissingNormals {
-                stage: "point-to-plane ICP",
-            })?)
-        }
+        IcpMethod::PointToPlane => Some(target_normals(target)?),
         IcpMethod::PointToPoint => None,
     };
+    let pair = |pose: &Isometry3<f64>| {
+        correspondences(
+            source.points(),
+            target_index,
+            pose,
+            options.max_correspondence_distance,
+            normal_test.as_ref(),
+        )
+    };
     let mut pose = *initial;
-    let mut matches = correspondences(
-        source.points(),
-        target_index,
-        &pose,
-        options.max_correspondence_distance,
-        normal_test.as_ref(),
-    );
+    let mut matches = pair(&pose);
     let mut score = Score::of(&matches, source.len());
     if score.count == 0 {
         return Err(RegistrationError::NoCorrespondences {
@@ -209,68 +209,25 @@ pub fn refine_icp(
             needed: 3,
         });
     }
-    // The turn of a constrained solve is taken about the source's centroid.
-    let spread = (options.min_eigen_ratio > 0.0)
-        .then(|| centre_and_radius(source.points()))
-        .flatten();
+    let step = Step {
+        source: source.points(),
+        target: target.points(),
+        target_normals,
+        // The turn of a constrained solve is taken about the source's centroid.
+        spread: (options.min_eigen_ratio > 0.0)
+            .then(|| centre_and_radius(source.points()))
+            .flatten(),
+        options,
+    };
     let mut iterations = 0;
     while iterations < options.max_iterations {
-        let pairs = matches.iter().enumerate().filter_map(|(i, m)| {
-            m.map(|m| {
-                (
-                    (pose * source.points()[i].cast::<f64>()),
-                    target.points()[m.index as usize].cast::<f64>(),
-                    m.index,
-                )
-            })
-        });
-        let step = match target_normals {
-            None => {
-                let weighted: Vec<_> = pairs
-                    .map(|(moved, target, _)| {
-                        (
-                            moved,
-                            target,
-                            options
-                                .kernel
-                                .map_or(1.0, |k| k.weight((moved - target).norm())),
-                        )
-                    })
-                    .collect();
-                kabsch(&weighted)
-            }
-            Some(normals) => {
-                let mut equations = NormalEquations::new();
-                for (moved, target, index) in pairs {
-                    let normal: Vector3<f64> = normals[index as usize].cast();
-                    let weight = options
-                        .kernel
-                        .map_or(1.0, |k| k.weight((moved - target).dot(&normal)));
-                    equations.add_point_to_plane(&moved.coords, &target.coords, &normal, weight);
-                }
-                match spread {
-                    Some((centre, radius)) => equations.solve_constrained(
-                        &(pose * centre),
-                        radius,
-                        options.min_eigen_ratio,
-                    ),
-                    None => equations.solve(),
-                }
-            }
-        };
         // Too few or degenerate correspondences to fix every degree of freedom: stay put.
-        let Some(step) = step else {
+        let Some(update) = step.solve(&matches, &pose) else {
             break;
         };
-        pose = step * pose;
+        pose = update * pose;
         iterations += 1;
-        matches = correspondences(
-            source.points(),
-            target_index,
-            &pose,
-            options.max_correspondence_distance,
-            normal_test.as_ref(),
-        );
+        matches = pair(&pose);
         let previous = score;
         score = Score::of(&matches, source.len());
         if (score.fitness - previous.fitness).abs() < options.relative_fitness
@@ -285,6 +242,65 @@ pub fn refine_icp(
         inlier_rmse: score.inlier_rmse,
         iterations,
     })
+}
+
+/// The target's normals, which point-to-plane ICP needs.
+fn target_normals(target: &PointCloud) -> Result<&[Vector3<f32>], RegistrationError> {
+    target.normals().ok_or(RegistrationError::MissingNormals {
+        stage: "point-to-plane ICP",
+    })
+}
+
+/// What one ICP iteration solves with: the clouds, the target's normals (point-to-plane) and
+/// the source's centroid and RMS radius (a constrained solve).
+struct Step<'a> {
+    source: &'a [Point3<f32>],
+    target: &'a [Point3<f32>],
+    target_normals: Option<&'a [Vector3<f32>]>,
+    spread: Option<(Point3<f64>, f64)>,
+    options: &'a IcpOptions,
+}
+
+impl Step<'_> {
+    /// The update of `pose` that the correspondences `matches` call for (closed form, or one
+    /// Gauss–Newton step), or `None` when they cannot fix every degree of freedom.
+    fn solve(
+        &self,
+        matches: &[Option<Neighbour>],
+        pose: &Isometry3<f64>,
+    ) -> Option<Isometry3<f64>> {
+        let kernel = self.options.kernel;
+        let pairs = matches.iter().enumerate().filter_map(|(i, m)| {
+            m.map(|m| {
+                (
+                    (pose * self.source[i].cast::<f64>()),
+                    self.target[m.index as usize].cast::<f64>(),
+                    m.index,
+                )
+            })
+        });
+        let Some(normals) = self.target_normals else {
+            let weighted: Vec<_> = pairs
+                .map(|(moved, target, _)| {
+                    let weight = kernel.map_or(1.0, |k| k.weight((moved - target).norm()));
+                    (moved, target, weight)
+                })
+                .collect();
+            return kabsch(&weighted);
+        };
+        let mut equations = NormalEquations::new();
+        for (moved, target, index) in pairs {
+            let normal: Vector3<f64> = normals[index as usize].cast();
+            let weight = kernel.map_or(1.0, |k| k.weight((moved - target).dot(&normal)));
+            equations.add_point_to_plane(&moved.coords, &target.coords, &normal, weight);
+        }
+        match self.spread {
+            Some((centre, radius)) => {
+                equations.solve_constrained(&(pose * centre), radius, self.options.min_eigen_ratio)
+            }
+            None => equations.solve(),
+        }
+    }
 }
 
 /// Fraction of `source` points (moved by `pose`) with a target point within `max_distance`
@@ -310,6 +326,24 @@ struct NormalTest<'a> {
     source: &'a [Vector3<f32>],
     target: &'a [Vector3<f32>],
     min_cosine: f32,
+}
+
+impl<'a> NormalTest<'a> {
+    /// Pairs whose normals differ by at most `max_angle` (radians); both clouds need normals.
+    fn new(
+        source: &'a PointCloud,
+        target: &'a PointCloud,
+        max_angle: f32,
+    ) -> Result<Self, RegistrationError> {
+        let missing = || RegistrationError::MissingNormals {
+            stage: "ICP normal compatibility",
+        };
+        Ok(Self {
+            source: source.normals().ok_or_else(missing)?,
+            target: target.normals().ok_or_else(missing)?,
+            min_cosine: max_angle.cos(),
+        })
+    }
 }
 
 /// Target candidates searched per source point under a normal test.
@@ -617,5 +651,42 @@ mod tests {
         );
         assert!(error_with(Some(RobustKernel::Huber(0.0005))) < plain);
         assert!(error_with(Some(RobustKernel::Cauchy(0.0005))) < plain);
+    }
+
+    #[test]
+    fn each_option_out_of_range_is_refused_by_name_before_any_work() {
+        let (cloud, _) = patch();
+        let index = PointIndex::from_points(cloud.points());
+        assert!(IcpOptions::default().validate().is_ok());
+        // Each option named with a change of the defaults that puts it out of range.
+        type Spoil = fn(&mut IcpOptions);
+        let bad: [(&str, Spoil); 7] = [
+            ("max_correspondence_distance", |o| {
+                o.max_correspondence_distance = 0.0
+            }),
+            ("kernel", |o| o.kernel = Some(RobustKernel::Huber(0.0))),
+            ("kernel", |o| {
+                o.kernel = Some(RobustKernel::Cauchy(f64::NAN))
+            }),
+            ("min_eigen_ratio", |o| o.min_eigen_ratio = 1.0),
+            ("min_eigen_ratio", |o| o.min_eigen_ratio = -0.1),
+            ("max_normal_angle", |o| o.max_normal_angle = Some(-0.1)),
+            ("max_normal_angle", |o| {
+                o.max_normal_angle = Some(f32::INFINITY)
+            }),
+        ];
+        for (name, spoil) in bad {
+            let mut options = IcpOptions::default();
+            spoil(&mut options);
+            let refused = |result: Result<(), RegistrationError>| match result {
+                Err(RegistrationError::InvalidOption { name: named, .. }) => named == name,
+                _ => false,
+            };
+            assert!(refused(options.validate()), "{options:?}");
+            // The cloud has no normals: a check of the options after the normals' would fail
+            // with MissingNormals instead.
+            let icp = refine_icp(&cloud, &cloud, &index, &Isometry3::identity(), &options);
+            assert!(refused(icp.map(|_| ())), "{options:?}");
+        }
     }
 }

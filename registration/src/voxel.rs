@@ -75,15 +75,23 @@ mod tests {
             let points: Vec<_> = coords.iter().map(|&(x, y, z)| Point3::new(x, y, z)).collect();
             let cloud = PointCloud::new(points.clone()).unwrap();
             let down = downsample_voxel(&cloud, voxel_size).unwrap();
-            let voxel = |p: &Point3<f32>| p.coords.map(|c| (c / voxel_size).floor() as i64);
-            let mut occupied: Vec<_> = points.iter().map(|p| { let v = voxel(p); (v.x, v.y, v.z) }).collect();
-            occupied.sort_unstable();
-            occupied.dedup();
-            prop_assert_eq!(down.len(), occupied.len());
-            // Each centroid lies in the bounding box of its voxel's points.
-            for q in down.points() {
-                let members: Vec<_> = points.iter().filter(|p| (*p - q).amax() <= voxel_size * 1.0001).collect();
-                prop_assert!(!members.is_empty());
+            // The voxel of a point: the cube of side `voxel_size` from the origin holding it.
+            let voxel = |p: &Point3<f32>| p.coords.map(|c| (f64::from(c) / f64::from(voxel_size)).floor() as i64);
+            let mut members: std::collections::BTreeMap<(i64, i64, i64), Vec<Point3<f32>>> = Default::default();
+            for p in &points {
+                let v = voxel(p);
+                members.entry((v.x, v.y, v.z)).or_default().push(*p);
+            }
+            // One point per occupied voxel, in voxel order (x, then y, then z index).
+            prop_assert_eq!(down.len(), members.len());
+            // Each centroid lies in the bounding box of its voxel's points (so inside the
+            // voxel), up to f32 rounding.
+            for (q, voxel_points) in down.points().iter().zip(members.values()) {
+                for axis in 0..3 {
+                    let low = voxel_points.iter().map(|p| p[axis]).fold(f32::INFINITY, f32::min);
+                    let high = voxel_points.iter().map(|p| p[axis]).fold(f32::NEG_INFINITY, f32::max);
+                    prop_assert!(low - 1e-6 <= q[axis] && q[axis] <= high + 1e-6, "{q} outside {voxel_points:?}");
+                }
             }
             // Input order does not matter.
             let reversed = PointCloud::new(points.into_iter().rev().collect()).unwrap();

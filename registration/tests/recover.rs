@@ -19,8 +19,10 @@ fn prepared_model() -> (common::Samples, PreparedCloud) {
         .unwrap()
         .with_normals(model.1.clone())
         .unwrap();
+    // Normals estimated from the samples, as a scanned model gets them, not the surface's
+    // exact ones.
     let options = PrepareOptions {
-        keep_normals: std::env::var("KEEP").is_ok(),
+        keep_normals: false,
         ..PrepareOptions::for_voxel(VOXEL)
             .oriented(NormalOrientation::Consistent { neighbours: 10 })
     };
@@ -128,6 +130,17 @@ fn fgr_alone_lands_near_most_views() {
         "FGR alone within 10° and 1 cm: mutual {}/{trials}, target-to-source {}/{trials}",
         near[0], near[1]
     );
+    // The floors: nothing in these views is ambiguous (the egg has no symmetry; each view
+    // keeps 2,300–3,100 of its points), so FGR may miss a view only where its candidates are
+    // mostly outliers. Checked once, outside the test (exhaustive feature matching is too slow
+    // to run every time), against the true pose (an inlier: within 1 cm of its partner):
+    // - target-to-source, one candidate per view point, 4.5–23% inliers: FGR must land near
+    //   every view but those at or near the twenty-to-one ratio where graduated
+    //   non-convexity can settle in a wrong mode (see `align_modes`), that is under one inlier
+    //   in 18 (5.6%): three of the ten views (4.5%, 5.4%, 5.5%). Hence 7.
+    // - mutual, only 157–329 pairs per view (7–46% inliers): FGR must land near the views
+    //   where at least one pair in five is an inlier (three: 23%, 32%, 46%); below that a
+    //   random triple of the tuple test is all inliers less than once in 125 draws. Hence 3.
     assert!(near[1] >= 7, "target-to-source: {}/{trials} near", near[1]);
     assert!(near[0] >= 3, "mutual: {}/{trials} near", near[0]);
 }

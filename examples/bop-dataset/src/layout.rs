@@ -151,6 +151,26 @@ impl BopDataset {
     }
 }
 
+/// Copies the dataset folder `from` (every file and folder below it) into `to`, creating it:
+/// labelling writes into a dataset, so a read-only one (or a test fixture) is labelled in a
+/// copy. An error names the file or folder that could not be read or written.
+pub fn copy_dataset(from: &Path, to: &Path) -> Result<(), FileError> {
+    let failed = |path: &Path, what: &str, error: std::io::Error| {
+        FileError::new(path, what, format!("cannot copy: {error}"))
+    };
+    std::fs::create_dir_all(to).map_err(|e| failed(to, "folder", e))?;
+    for entry in std::fs::read_dir(from).map_err(|e| failed(from, "folder", e))? {
+        let entry = entry.map_err(|e| failed(from, "folder", e))?;
+        let (source, target) = (entry.path(), to.join(entry.file_name()));
+        if source.is_dir() {
+            copy_dataset(&source, &target)?;
+        } else {
+            std::fs::copy(&source, &target).map_err(|e| failed(&source, "file", e))?;
+        }
+    }
+    Ok(())
+}
+
 /// The scene id of a split's entry: a folder named by six digits (`000001`).
 fn scene_folder_id(entry: &std::fs::DirEntry) -> Option<u32> {
     let name = entry.file_name();

@@ -15,11 +15,12 @@
 //!                           mask/ and mask_visib/{im_id:06}_{inst:06}.png
 //! ```
 //!
-//! - [`BopDataset`] and [`SceneDir`]: where each file lies.
+//! - [`BopDataset`] and [`SceneDir`]: where each file lies; [`copy_dataset`] copies one.
 //! - One reader and one writer per file: [`read_models_info`] / [`write_models_info`]
 //!   ([`ModelInfo`] with its symmetry group), [`read_scene_camera`], [`read_scene_gt`],
 //!   [`read_scene_gt_info`], [`read_pseudo_gt`] and their `write_*` twins, [`write_mesh_ply`].
 //! - Images: [`read_depth`] (metres), [`read_mask`], [`read_rgb`] and their `write_*` twins.
+//! - [`Progress`]: how the long jobs of the crates built on this one report their progress.
 //! - [`write_atomically`] and [`write_json`]: every result file is written to a temporary sibling
 //!   and renamed over its path, so a reader or a resumed run never sees half a file.
 //!
@@ -53,6 +54,7 @@ mod images;
 mod json;
 mod layout;
 mod models;
+mod progress;
 mod pseudo_gt;
 mod recorded;
 mod scene;
@@ -67,8 +69,9 @@ pub use images::{
 pub use json::{
     BopCamera, Intrinsics, camera_from_json, pose_from_json, pose_to_json, read_json, read_json_as,
 };
-pub use layout::{BopDataset, SceneDir};
+pub use layout::{BopDataset, SceneDir, copy_dataset};
 pub use models::{ModelInfo, read_models_info, write_mesh_ply, write_models_info};
+pub use progress::Progress;
 pub use pseudo_gt::{PseudoInstance, PseudoLabel, read_pseudo_gt, write_pseudo_gt};
 pub use recorded::{as_recorded, check_recorded};
 pub use scene::{

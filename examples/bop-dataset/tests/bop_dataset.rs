@@ -96,7 +96,12 @@ fn the_writers_round_trip_through_the_readers() {
     ]);
     write_scene_gt(&path("scene_gt.json"), &gt).unwrap();
     let back = read_scene_gt(&path("scene_gt.json")).unwrap();
+    assert_eq!(
+        back.keys().collect::<Vec<_>>(),
+        gt.keys().collect::<Vec<_>>()
+    );
     for (im_id, instances) in &gt {
+        assert_eq!(back[im_id].len(), instances.len(), "image {im_id}");
         for (a, b) in instances.iter().zip(&back[im_id]) {
             assert_eq!(a.obj_id, b.obj_id);
             assert!(close(&a.pose, &b.pose));
@@ -160,6 +165,8 @@ fn the_writers_round_trip_through_the_readers() {
     )]);
     write_pseudo_gt(&path("scene_pseudo_gt.json"), &labels).unwrap();
     let back = read_pseudo_gt(&path("scene_pseudo_gt.json")).unwrap();
+    assert_eq!(back.keys().collect::<Vec<_>>(), [&0]);
+    assert_eq!(back[&0].len(), labels[&0].len());
     assert_eq!(back[&0][1], labels[&0][1]);
     let (best, expected) = (
         back[&0][2].best.as_ref().unwrap(),
@@ -168,6 +175,7 @@ fn the_writers_round_trip_through_the_readers() {
     assert!(close(&best.pose, &expected.pose) && (best.score - expected.score).abs() < 1e-15);
     assert!(back[&0][2].labels.is_empty() && back[&0][0].best.is_none());
     assert_eq!(back[&0][0].warning, labels[&0][0].warning);
+    assert_eq!(back[&0][0].labels.len(), labels[&0][0].labels.len());
     for (a, b) in labels[&0][0].labels.iter().zip(&back[&0][0].labels) {
         assert!(close(&a.pose, &b.pose) && (a.score - b.score).abs() < 1e-15);
     }
@@ -283,4 +291,34 @@ fn malformed_files_name_the_file_and_the_key() {
             .to_string()
             .contains("absent.json")
     );
+}
+
+#[test]
+fn a_dataset_is_copied_file_for_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let copy = dir.path().join("copy");
+    bop_dataset::copy_dataset(&fixture(), &copy).unwrap();
+    let files = |root: &Path| {
+        let mut found = BTreeMap::new();
+        let mut folders = vec![root.to_path_buf()];
+        while let Some(folder) = folders.pop() {
+            for entry in std::fs::read_dir(folder).unwrap() {
+                let path = entry.unwrap().path();
+                if path.is_dir() {
+                    folders.push(path);
+                } else {
+                    let name = path.strip_prefix(root).unwrap().to_path_buf();
+                    found.insert(name, std::fs::read(&path).unwrap());
+                }
+            }
+        }
+        found
+    };
+    let (original, copied) = (files(&fixture()), files(&copy));
+    // tests/data/tless_layout: 4 files outside its scene folder, 13 in it.
+    assert_eq!(original.len(), 17);
+    assert!(original == copied);
+    let missing = dir.path().join("absent");
+    let error = bop_dataset::copy_dataset(&missing, &dir.path().join("other")).unwrap_err();
+    assert_eq!(error.path, missing);
 }

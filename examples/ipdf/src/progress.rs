@@ -17,3 +17,18 @@ pub fn bar(total: u64, what: &str) -> ProgressBar {
     BARS.get_or_init(MultiProgress::new)
         .add(ProgressBar::new(total).with_style(style))
 }
+
+/// An indicatif bar as the [`bop_dataset::Progress`] of the library jobs (`synthesize`,
+/// `label_dataset`).
+pub struct Bar(pub ProgressBar);
+
+impl bop_dataset::Progress for Bar {
+    fn set_total(&self, total: u64, done: u64) {
+        self.0.set_length(total);
+        self.0.set_position(done);
+    }
+
+    fn advance(&self, units: u64) {
+        self.0.inc(units);
+    }
+}

@@ -1,56 +1,20 @@
 //! The T-LESS-shaped fixture of `bop-dataset` (`examples/bop-dataset/tests/data/tless_layout`)
-//! through the command line and the training data: labelled in place of synthetic data, full
-//! masks standing in for missing visible ones, the models folder named by its flag.
+//! through the command line and the training data: full masks standing in for missing visible
+//! ones, the models folder named by its flag. Its labels are tested through the library, in
+//! `examples/pseudo-label/tests/tless_layout.rs`.
 mod common;
 
 use std::path::{Path, PathBuf};
 
-use bop_dataset::{BopDataset, read_models_info, read_pseudo_gt, read_scene_gt};
-use common::{copy_dir, ipdf_json, s};
+use bop_dataset::BopDataset;
+use common::{copy_dir, s};
 use ipdf::training_data::{ExampleOptions, LabelSource, load_examples};
 
-fn fixture() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../bop-dataset/tests/data/tless_layout")
-}
+/// The fixture's folder, in the crate that owns it (`examples/bop-dataset`).
+const FIXTURE: &str = "../bop-dataset/tests/data/tless_layout";
 
-#[test]
-fn the_t_less_layout_is_labelled_in_place_of_synthetic_data() {
-    let dir = tempfile::tempdir().unwrap();
-    let root = dir.path().join("tless");
-    copy_dir(&fixture(), &root);
-    let run = ipdf_json(&[
-        "label",
-        "--dataset",
-        s(&root),
-        "--split",
-        "test_primesense",
-        "--models-dir",
-        "models_cad",
-    ]);
-    assert_eq!(
-        (run["images"].as_u64(), run["instances"].as_u64()),
-        (Some(2), Some(3)),
-        "{run}"
-    );
-    let labels = read_pseudo_gt(&root.join("test_primesense/000001/scene_pseudo_gt.json")).unwrap();
-    // Image 5 shows the can alone, and its labels are its symmetric poses.
-    let truth =
-        read_scene_gt(&root.join("test_primesense/000001/scene_gt.json")).unwrap()[&5][0].pose;
-    let group = read_models_info(&root.join("models_cad/models_info.json")).unwrap()[&1]
-        .symmetry
-        .clone();
-    let found = &labels[&5][0];
-    assert!(
-        found.error.is_none() && !found.labels.is_empty(),
-        "{found:?}"
-    );
-    for label in &found.labels {
-        let error = group
-            .class_distances(&truth.rotation, &label.pose.rotation)
-            .into_iter()
-            .fold(f64::INFINITY, f64::min);
-        assert!(error.to_degrees() < 2.0, "{}", error.to_degrees());
-    }
+fn fixture() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(FIXTURE)
 }
 
 #[test]

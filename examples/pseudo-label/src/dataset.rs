@@ -3,13 +3,12 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::time::Instant;
 
-use indicatif::ProgressBar;
 use rayon::prelude::*;
 
 use bop_dataset::{
-    BopDataset, FileError, Intrinsics, PseudoInstance, PseudoLabel, SceneDir, as_recorded,
-    check_recorded, read_depth, read_mask, read_object_ids, read_scene_camera, write_json,
-    write_pseudo_gt,
+    BopDataset, FileError, Intrinsics, Progress, PseudoInstance, PseudoLabel, SceneDir,
+    as_recorded, check_recorded, read_depth, read_mask, read_object_ids, read_scene_camera,
+    write_json, write_pseudo_gt,
 };
 
 use depth_render::SensorPreset;
@@ -260,16 +259,58 @@ fn recorded_options(
 }
 
 /// Labels every unlabelled scene of `options.split` in this shard (see the module docs);
-/// `progress` advances by one per image.
+/// `progress` advances by one per image (a skipped scene's images at once); its total is the
+/// caller's to set ([`BopDataset::image_count`] counts a split's images).
 pub fn label_dataset(
     dataset: &BopDataset,
     dataset_options: &DatasetOptions,
     options: &LabelOptions,
-    progress: &ProgressBar,
+    progress: &dyn Progress,
 ) -> Result<LabelSummary, LabelError> {
     options.validate()?;
     dataset.check_models()?;
     let started = Instant::now();
+    let scene_ids = shard_scenes(dataset, dataset_options)?;
+    record_options(dataset, dataset_options, options, &scene_ids)?;
+    let mut summary = LabelSummary {
+        scenes: scene_ids.len(),
+        ..LabelSummary::default()
+    };
+    let mut models: BTreeMap<u32, Option<Arc<ObjectModel>>> = BTreeMap::new();
+    for scene_id in scene_ids {
+        let scene = dataset.scene(&dataset_options.split, scene_id);
+        let instances = scene_instances(&scene, dataset_options.obj_id)?;
+        if scene.pseudo_gt_path().exists() {
+            summary.scenes_skipped += 1;
+            progress.advance(instances.len() as u64);
+            continue;
+        }
+        for obj_id in instances.values().flatten() {
+            if !models.contains_key(obj_id) {
+                models.insert(
+                    *obj_id,
+                    load_model(dataset, *obj_id, dataset_options, options, &mut summary)?,
+                );
+            }
+        }
+        let labelled = label_scene(&scene, &instances, &models, options, progress)?;
+        summary.count(&labelled);
+        let labelled = labelled
+            .into_iter()
+            .map(|(im_id, list)| (im_id, list.into_iter().map(|(i, _)| i).collect()))
+            .collect();
+        write_pseudo_gt(&scene.pseudo_gt_path(), &labelled)?;
+    }
+    summary.seconds = started.elapsed().as_secs_f64();
+    Ok(summary)
+}
+
+/// The scenes of `dataset_options.split` in this job's shard; an error when the split has
+/// none.
+fn shard_scenes(
+    dataset: &BopDataset,
+    dataset_options: &DatasetOptions,
+) -> Result<Vec<u32>, LabelError> {
     let shard = dataset_options.shard;
     let all_scenes = dataset.scene_ids(&dataset_options.split)?;
     if all_scenes.is_empty() {
@@ -280,19 +321,29 @@ pub fn label_dataset(
         )
         .into());
     }
-    let scene_ids: Vec<u32> = all_scenes
+    Ok(all_scenes
         .into_iter()
         .enumerate()
         .filter(|(k, _)| k % shard.count == shard.index)
         .map(|(_, id)| id)
-        .collect();
+        .collect())
+}
+
+/// Records the options in the split's [`LABEL_OPTIONS_FILE`]: after discarding the labels of
+/// `scene_ids` when relabelling, else after refusing options other than those recorded.
+fn record_options(
+    dataset: &BopDataset,
+    dataset_options: &DatasetOptions,
+    options: &LabelOptions,
+    scene_ids: &[u32],
+) -> Result<(), LabelError> {
     let options_path = dataset
         .root
         .join(&dataset_options.split)
         .join(LABEL_OPTIONS_FILE);
     let recorded = recorded_options(dataset, dataset_options, options);
     if dataset_options.relabel {
-        for &scene_id in &scene_ids {
+        for &scene_id in scene_ids {
             let path = dataset
                 .scene(&dataset_options.split, scene_id)
                 .pseudo_gt_path();
@@ -310,65 +361,53 @@ pub fn label_dataset(
         )?;
     }
     write_json(&options_path, &recorded)?;
-    let mut summary = LabelSummary {
-        scenes: scene_ids.len(),
-        ..LabelSummary::default()
-    };
-    let mut models: BTreeMap<u32, Option<Arc<ObjectModel>>> = BTreeMap::new();
-    for scene_id in scene_ids {
-        let scene = dataset.scene(&dataset_options.split, scene_id);
-        let instances = scene_instances(&scene, dataset_options.obj_id)?;
-        if scene.pseudo_gt_path().exists() {
-            summary.scenes_skipped += 1;
-            progress.inc(instances.len() as u64);
-            continue;
-        }
-        for obj_id in instances.values().flatten() {
-            if !models.contains_key(obj_id) {
-                models.insert(
-                    *obj_id,
-                    load_model(dataset, *obj_id, dataset_options, options, &mut summary)?,
-                );
-            }
-        }
-        let cameras = read_scene_camera(&scene.camera_path())?;
-        let labelled: Vec<(u32, Vec<Outcome>)> = instances
-            .par_iter()
-            .map(|(&im_id, obj_ids)| {
-                let result = match cameras.get(&im_id) {
-                    Some(intrinsics) => {
-                        label_image(&scene, im_id, intrinsics, obj_ids, &models, options)
-                    }
-                    None => failed_image(
-                        obj_ids,
-                        &LabelFailure::Input(format!(
-                            "{}: image {im_id} is missing",
-                            scene.camera_path().display()
-                        )),
-                    ),
-                };
-                progress.inc(1);
-                (im_id, result)
-            })
-            .collect();
+    Ok(())
+}
+
+/// The labels of every image of `scene` (in parallel), `instances` giving the object id of
+/// each of its instances by image id; `progress` advances by one per image.
+fn label_scene(
+    scene: &SceneDir,
+    instances: &BTreeMap<u32, Vec<u32>>,
+    models: &BTreeMap<u32, Option<Arc<ObjectModel>>>,
+    options: &LabelOptions,
+    progress: &dyn Progress,
+) -> Result<Vec<(u32, Vec<Outcome>)>, LabelError> {
+    let cameras = read_scene_camera(&scene.camera_path())?;
+    Ok(instances
+        .par_iter()
+        .map(|(&im_id, obj_ids)| {
+            let result = match cameras.get(&im_id) {
+                Some(intrinsics) => label_image(scene, im_id, intrinsics, obj_ids, models, options),
+                None => failed_image(
+                    obj_ids,
+                    &LabelFailure::Input(format!(
+                        "{}: image {im_id} is missing",
+                        scene.camera_path().display()
+                    )),
+                ),
+            };
+            progress.advance(1);
+            (im_id, result)
+        })
+        .collect())
+}
+
+impl LabelSummary {
+    /// Counts the images, instances, labels, warnings and failures of a scene's `labelled`
+    /// images.
+    fn count(&mut self, labelled: &[(u32, Vec<Outcome>)]) {
         for (instance, failure) in labelled.iter().flat_map(|(_, list)| list) {
-            summary.instances += 1;
-            summary.labels += instance.labels.len();
-            summary.warnings += usize::from(instance.warning.is_some());
+            self.instances += 1;
+            self.labels += instance.labels.len();
+            self.warnings += usize::from(instance.warning.is_some());
             match failure {
-                None => summary.labelled += 1,
-                Some(kind) => *summary.failures.entry(kind).or_default() += 1,
+                None => self.labelled += 1,
+                Some(kind) => *self.failures.entry(kind).or_default() += 1,
             }
         }
-        summary.images += labelled.len();
-        let labelled = labelled
-            .into_iter()
-            .map(|(im_id, list)| (im_id, list.into_iter().map(|(i, _)| i).collect()))
-            .collect();
-        write_pseudo_gt(&scene.pseudo_gt_path(), &labelled)?;
+        self.images += labelled.len();
     }
-    summary.seconds = started.elapsed().as_secs_f64();
-    Ok(summary)
 }
 
 /// An instance's pseudo labels and, when labelling failed, the kind of failure.

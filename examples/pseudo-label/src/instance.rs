@@ -454,7 +454,7 @@ pub fn label_instance(
 /// is correlated between neighbouring pixels (a structured-light camera matches 9×9 windows) and
 /// quantised into steps that neighbours share, so their second differences understate it.
 /// Measured: clean renders 0–0.05, the sensor presets 0.8–1, real Asus Xtion frames of
-/// YCB-Video (`tests/data/ycbv_real` of `ipdf`) 0.26–0.48 against the Kinect preset, whose
+/// YCB-Video (`tests/data/ycbv_real`) 0.26–0.48 against the Kinect preset, whose
 /// labels the lowered thresholds then refused. Estimates from 0.1 (`TRUSTED_CLEAN`) to 0.2
 /// are raised linearly to 1, and above it read as 1.
 pub fn noise_ratio(observation: &Observation, sensor: &DepthSensor) -> f64 {

@@ -7,9 +7,10 @@ use std::collections::BTreeMap;
 use std::io::Write;
 
 use bop_dataset::{
-    BopDataset, FileError, read_models_info, read_pseudo_gt, read_scene_gt, read_scene_gt_info,
-    write_atomically, write_json,
+    BopDataset, FileError, GtInstance, ModelInfo, PseudoInstance, SceneDir, read_models_info,
+    read_pseudo_gt, read_scene_gt, read_scene_gt_info, write_atomically, write_json,
 };
+use metrics::SymmetryGroup;
 
 use serde::{Deserialize, Serialize};
 
@@ -168,141 +169,196 @@ pub fn report(
     variant: &str,
 ) -> Result<LabelReport, LabelError> {
     let models = read_models_info(&dataset.models_info_path())?;
-    let mut sums: BTreeMap<u32, (ObjectLabelScores, f64, f64)> = BTreeMap::new();
-    let mut best_scores: BTreeMap<u32, (Vec<f64>, Vec<f64>)> = BTreeMap::new();
+    let mut sums: BTreeMap<u32, ObjectSums> = BTreeMap::new();
     for scene_id in dataset.scene_ids(split)? {
         let scene = dataset.scene(split, scene_id);
         if !scene.pseudo_gt_path().exists() || !scene.gt_path().exists() {
             continue;
         }
-        let gt = read_scene_gt(&scene.gt_path())?;
-        let pseudo = read_pseudo_gt(&scene.pseudo_gt_path())?;
-        let info = if scene.gt_info_path().exists() {
-            Some(read_scene_gt_info(&scene.gt_info_path())?)
-        } else {
-            None
-        };
-        for (im_id, instances) in &pseudo {
-            for (k, instance) in instances.iter().enumerate() {
-                let Some(truth) = gt.get(im_id).and_then(|list| list.get(k)) else {
-                    continue;
-                };
-                if truth.obj_id != instance.obj_id {
-                    return Err(FileError::new(
-                        &scene.pseudo_gt_path(),
-                        format!("{im_id}[{k}].obj_id"),
-                        format!("{} but scene_gt.json has {}", instance.obj_id, truth.obj_id),
-                    )
-                    .into());
-                }
-                let group = models
-                    .get(&truth.obj_id)
-                    .map(|m| m.symmetry.clone())
-                    .unwrap_or_default();
-                let entry = sums.entry(truth.obj_id).or_insert_with(|| {
-                    let scores = ObjectLabelScores {
-                        obj_id: truth.obj_id,
-                        ..Default::default()
-                    };
-                    (scores, 0.0, 0.0)
-                });
-                entry.0.instances += 1;
-                let visible = info
-                    .as_ref()
-                    .and_then(|info| info.get(im_id)?.get(k))
-                    .map(|i| i.visib_fract);
-                let bin = visible.map(|visible| {
-                    VISIBILITY_BINS
-                        .iter()
-                        .rposition(|&m| visible >= m)
-                        .unwrap_or(0)
-                });
-                if let Some(bin) = bin {
-                    let bins = &mut entry.0.by_visibility;
-                    if bins.is_empty() {
-                        bins.extend(VISIBILITY_BINS.map(|min_visible| VisibilityBin {
-                            min_visible,
-                            ..Default::default()
-                        }));
-                    }
-                    bins[bin].instances += 1;
-                    bins[bin].labelled += usize::from(!instance.labels.is_empty());
-                }
-                let (accepted, rejected) = best_scores.entry(truth.obj_id).or_default();
-                match (instance.labels.first(), &instance.best) {
-                    (Some(label), _) => accepted.push(label.score),
-                    (None, Some(best)) => rejected.push(best.score),
-                    (None, None) => {}
-                }
-                if instance.labels.is_empty() {
-                    continue;
-                }
-                entry.0.labelled += 1;
-                // Per label, the distance to each symmetry class of the ground truth.
-                let distances: Vec<Vec<f64>> = instance
-                    .labels
-                    .iter()
-                    .map(|label| group.class_distances(&truth.pose.rotation, &label.pose.rotation))
-                    .collect();
-                let mut off = false;
-                let first = entry.0.errors_deg.len();
-                for per_class in &distances {
-                    let error = per_class
-                        .iter()
-                        .fold(f64::INFINITY, |a, &b| a.min(b))
-                        .to_degrees();
-                    off |= error > COVERAGE_ANGLE_DEG;
-                    entry.1 += error;
-                    entry.0.errors_deg.push(error);
-                    entry.0.labels += 1;
-                }
-                if let Some(bin) = bin {
-                    let errors = &entry.0.errors_deg[first..];
-                    let bin = &mut entry.0.by_visibility[bin];
-                    bin.labels += errors.len();
-                    // The sum for now: divided by the count once all are in.
-                    for error in errors {
-                        bin.label_maad_deg += error;
-                    }
-                    bin.off_instances += usize::from(off);
-                }
-                let classes = distances[0].len();
-                let covered = (0..classes)
-                    .filter(|&c| {
-                        distances
-                            .iter()
-                            .any(|d| d[c].to_degrees() <= COVERAGE_ANGLE_DEG)
-                    })
-                    .count();
-                entry.2 += covered as f64 / classes as f64;
-                entry.0.off_instances += usize::from(off);
-            }
-        }
+        score_scene(&scene, &models, &mut sums)?;
     }
     let objects = sums
         .into_iter()
-        .map(|(obj_id, (mut scores, maad_sum, coverage_sum))| {
-            scores.label_maad_deg = maad_sum / scores.labels.max(1) as f64;
-            for bin in &mut scores.by_visibility {
-                bin.label_maad_deg /= bin.labels.max(1) as f64;
-            }
-            scores.coverage = coverage_sum / scores.labelled.max(1) as f64;
-            scores.labelled_fraction = scores.labelled as f64 / scores.instances.max(1) as f64;
-            if let Some((accepted, rejected)) = best_scores.remove(&obj_id) {
-                scores.scores = percentiles(accepted);
-                scores.rejected_scores = percentiles(rejected);
-            }
+        .map(|(obj_id, sums)| {
             let name = names
                 .get(&obj_id)
                 .cloned()
                 .unwrap_or_else(|| format!("obj_{obj_id:06}"));
-            (name, scores)
+            (name, sums.finish())
         })
         .collect();
     Ok(LabelReport {
         variant: variant.to_string(),
         objects,
     })
+}
+
+/// Adds the instances of `scene` that have both a pseudo-label entry and a ground-truth pose
+/// to the sums of their objects; an error when the two name different objects.
+fn score_scene(
+    scene: &SceneDir,
+    models: &BTreeMap<u32, ModelInfo>,
+    sums: &mut BTreeMap<u32, ObjectSums>,
+) -> Result<(), LabelError> {
+    let gt = read_scene_gt(&scene.gt_path())?;
+    let pseudo = read_pseudo_gt(&scene.pseudo_gt_path())?;
+    let info = if scene.gt_info_path().exists() {
+        Some(read_scene_gt_info(&scene.gt_info_path())?)
+    } else {
+        None
+    };
+    for (im_id, instances) in &pseudo {
+        for (k, instance) in instances.iter().enumerate() {
+            let Some(truth) = gt.get(im_id).and_then(|list| list.get(k)) else {
+                continue;
+            };
+            if truth.obj_id != instance.obj_id {
+                return Err(FileError::new(
+                    &scene.pseudo_gt_path(),
+                    format!("{im_id}[{k}].obj_id"),
+                    format!("{} but scene_gt.json has {}", instance.obj_id, truth.obj_id),
+                )
+                .into());
+            }
+            let group = models
+                .get(&truth.obj_id)
+                .map(|m| m.symmetry.clone())
+                .unwrap_or_default();
+            let visible = info
+                .as_ref()
+                .and_then(|info| info.get(im_id)?.get(k))
+                .map(|i| i.visib_fract);
+            sums.entry(truth.obj_id)
+                .or_insert_with(|| ObjectSums::new(truth.obj_id))
+                .add(instance, truth, &group, visible);
+        }
+    }
+    Ok(())
+}
+
+/// One object's scores while its instances come in: counts in `scores`, sums to divide at
+/// the end.
+struct ObjectSums {
+    scores: ObjectLabelScores,
+    /// Of every label's angle to the nearest ground-truth symmetric rotation (degrees).
+    error_sum: f64,
+    /// Of every labelled instance's fraction of symmetry classes covered.
+    coverage_sum: f64,
+    /// The best score of each labelled instance (its first label's).
+    accepted: Vec<f64>,
+    /// The best pose's score of each unlabelled instance that has one.
+    rejected: Vec<f64>,
+}
+
+impl ObjectSums {
+    fn new(obj_id: u32) -> Self {
+        Self {
+            scores: ObjectLabelScores {
+                obj_id,
+                ..Default::default()
+            },
+            error_sum: 0.0,
+            coverage_sum: 0.0,
+            accepted: Vec::new(),
+            rejected: Vec::new(),
+        }
+    }
+
+    /// Adds an instance: its labels against the `truth` expanded by `group`, in the bin of its
+    /// `visible` fraction where it is known.
+    fn add(
+        &mut self,
+        instance: &PseudoInstance,
+        truth: &GtInstance,
+        group: &SymmetryGroup,
+        visible: Option<f64>,
+    ) {
+        self.scores.instances += 1;
+        let bin = visible.map(|visible| {
+            VISIBILITY_BINS
+                .iter()
+                .rposition(|&m| visible >= m)
+                .unwrap_or(0)
+        });
+        if let Some(bin) = bin {
+            let bins = &mut self.scores.by_visibility;
+            if bins.is_empty() {
+                bins.extend(VISIBILITY_BINS.map(|min_visible| VisibilityBin {
+                    min_visible,
+                    ..Default::default()
+                }));
+            }
+            bins[bin].instances += 1;
+            bins[bin].labelled += usize::from(!instance.labels.is_empty());
+        }
+        match (instance.labels.first(), &instance.best) {
+            (Some(label), _) => self.accepted.push(label.score),
+            (None, Some(best)) => self.rejected.push(best.score),
+            (None, None) => {}
+        }
+        if instance.labels.is_empty() {
+            return;
+        }
+        self.scores.labelled += 1;
+        // Per label, the distance to each symmetry class of the ground truth.
+        let distances: Vec<Vec<f64>> = instance
+            .labels
+            .iter()
+            .map(|label| group.class_distances(&truth.pose.rotation, &label.pose.rotation))
+            .collect();
+        self.add_labels(&distances, bin);
+    }
+
+    /// Adds the labels of a labelled instance, given by their `distances` to each symmetry
+    /// class of the ground truth (radians), in visibility bin `bin`.
+    fn add_labels(&mut self, distances: &[Vec<f64>], bin: Option<usize>) {
+        let mut off = false;
+        let first = self.scores.errors_deg.len();
+        for per_class in distances {
+            let error = per_class
+                .iter()
+                .fold(f64::INFINITY, |a, &b| a.min(b))
+                .to_degrees();
+            off |= error > COVERAGE_ANGLE_DEG;
+            self.error_sum += error;
+            self.scores.errors_deg.push(error);
+            self.scores.labels += 1;
+        }
+        if let Some(bin) = bin {
+            let errors = &self.scores.errors_deg[first..];
+            let bin = &mut self.scores.by_visibility[bin];
+            bin.labels += errors.len();
+            // The sum for now: divided by the count once all are in.
+            for error in errors {
+                bin.label_maad_deg += error;
+            }
+            bin.off_instances += usize::from(off);
+        }
+        let classes = distances[0].len();
+        let covered = (0..classes)
+            .filter(|&c| {
+                distances
+                    .iter()
+                    .any(|d| d[c].to_degrees() <= COVERAGE_ANGLE_DEG)
+            })
+            .count();
+        self.coverage_sum += covered as f64 / classes as f64;
+        self.scores.off_instances += usize::from(off);
+    }
+
+    /// The scores: sums divided by their counts, percentiles of the best scores.
+    fn finish(self) -> ObjectLabelScores {
+        let mut scores = self.scores;
+        scores.label_maad_deg = self.error_sum / scores.labels.max(1) as f64;
+        for bin in &mut scores.by_visibility {
+            bin.label_maad_deg /= bin.labels.max(1) as f64;
+        }
+        scores.coverage = self.coverage_sum / scores.labelled.max(1) as f64;
+        scores.labelled_fraction = scores.labelled as f64 / scores.instances.max(1) as f64;
+        scores.scores = percentiles(self.accepted);
+        scores.rejected_scores = percentiles(self.rejected);
+        scores
+    }
 }
 
 /// The 5th, 25th, 50th, 75th and 95th percentiles (nearest rank) of `values`; `None` when empty.

@@ -204,9 +204,58 @@ impl FrameRenderer {
         let pose = camera_from_world * world_from_object;
         let mut instances = vec![Instance::new(0, pose), Instance::new(1, camera_from_world)];
         let mut materials = vec![style.material.clone(), Material::Uniform([0.55, 0.5, 0.45])];
+        let others =
+            self.place_others(style, (&world_from_object, (x, y)), &camera_from_world, rng);
+        for (instance, material) in others {
+            instances.push(instance);
+            materials.push(material);
+        }
+        let full = Window::full(camera);
+        let rendering = self.scene.render(camera, &instances, full)?;
+        let rgb = self.scene.shade(
+            camera,
+            &instances,
+            &materials,
+            &Lighting::default(),
+            &rendering,
+        )?;
+        let mask_visib: Vec<bool> = rendering.instance.iter().map(|&i| i == Some(0)).collect();
+        let mask = self.silhouette(camera, &pose)?;
+        let width = camera.width as usize;
+        let depth = match &style.sensor {
+            Some(sensor) => sensor.apply(&rendering.depth, camera, rng.random()),
+            None => rendering.depth,
+        };
+        // The boxes and pixel counts are the true masks'.
+        let info = gt_info(&mask, &mask_visib, &depth, width);
+        let mask_visib = match &style.mask_errors {
+            Some(errors) => errors.apply(&mask_visib, width, rng.random()),
+            None => mask_visib,
+        };
+        Ok(Frame {
+            rgb,
+            depth,
+            mask,
+            mask_visib,
+            pose,
+            info,
+        })
+    }
+
+    /// The distractors and occluders of a frame (`style`), placed on the table around the
+    /// object (its table pose and origin) seen by `camera_from_world`: each one's instance and
+    /// random flat colour.
+    fn place_others<R: Rng>(
+        &self,
+        style: &FrameStyle,
+        (world_from_object, (x, y)): (&Isometry3<f64>, (f64, f64)),
+        camera_from_world: &Isometry3<f64>,
+        rng: &mut R,
+    ) -> Vec<(Instance, Material)> {
         // The camera's direction from the object, on the table.
         let eye = camera_from_world.inverse() * Point3::origin();
         let towards_camera = (eye.y - y).atan2(eye.x - x);
+        let mut others = Vec::with_capacity(style.distractors + style.occluders);
         for k in 0..style.distractors + style.occluders {
             // Distractors are the small shapes; occluders those or the panel.
             let kinds = DISTRACTORS.len() + usize::from(k >= style.distractors);
@@ -227,31 +276,33 @@ impl FrameRenderer {
             });
             let placed = place_beside(
                 (&standing, corners),
-                (&world_from_object, &self.corners),
+                (world_from_object, &self.corners),
                 (x, y),
                 angle,
                 reach,
             );
-            instances.push(Instance::new(2 + kind, camera_from_world * placed));
-            materials.push(Material::Uniform(std::array::from_fn(|_| {
-                0.2 + 0.7 * rng.random::<f32>()
-            })));
+            let colour = std::array::from_fn(|_| 0.2 + 0.7 * rng.random::<f32>());
+            others.push((
+                Instance::new(2 + kind, camera_from_world * placed),
+                Material::Uniform(colour),
+            ));
         }
-        let full = Window::full(camera);
-        let rendering = self.scene.render(camera, &instances, full)?;
-        let rgb = self.scene.shade(
+        others
+    }
+
+    /// The object's full silhouette at `pose` (nothing in front of it), over the whole image.
+    fn silhouette(
+        &self,
+        camera: &PinholeCamera,
+        pose: &Isometry3<f64>,
+    ) -> Result<Vec<bool>, SynthError> {
+        let alone = self.scene.render(
             camera,
-            &instances,
-            &materials,
-            &Lighting::default(),
-            &rendering,
+            &[Instance::new(0, *pose)],
+            self.window(camera, pose),
         )?;
-        let mask_visib: Vec<bool> = rendering.instance.iter().map(|&i| i == Some(0)).collect();
-        let alone = self
-            .scene
-            .render(camera, &instances[..1], self.window(camera, &pose))?;
-        let mut mask = vec![false; mask_visib.len()];
         let width = camera.width as usize;
+        let mut mask = vec![false; width * camera.height as usize];
         let window_width = alone.window.width() as usize;
         for (i, hit) in alone.instance.iter().enumerate() {
             if hit.is_some() {
@@ -262,24 +313,7 @@ impl FrameRenderer {
                 mask[v * width + u] = true;
             }
         }
-        let depth = match &style.sensor {
-            Some(sensor) => sensor.apply(&rendering.depth, camera, rng.random()),
-            None => rendering.depth,
-        };
-        // The boxes and pixel counts are the true masks'.
-        let info = gt_info(&mask, &mask_visib, &depth, width);
-        let mask_visib = match &style.mask_errors {
-            Some(errors) => errors.apply(&mask_visib, width, rng.random()),
-            None => mask_visib,
-        };
-        Ok(Frame {
-            rgb,
-            depth,
-            mask,
-            mask_visib,
-            pose,
-            info,
-        })
+        Ok(mask)
     }
 
     /// The pixels the object's bounding box projects to (the whole image when part of it is
@@ -501,11 +535,23 @@ mod tests {
             mean(&in_front) < mean(&around) - 0.05,
             "{around:?} {in_front:?}"
         );
+        // The floor: each occluder is the panel one time in four (one of four shapes), so
+        // about 24 · (1 − (3/4)²) ≈ 10 of the frames have one. Standing about 10 cm in front of
+        // the bowl and 185 mm tall (1.6 times the bowl's bounding radius, 115 mm, which is its
+        // width), it hides the middle of the 53 mm bowl from cameras below about 58° of
+        // elevation (26 mm + 100 mm · tan 58° = 185 mm): two thirds of the 15–80° drawn, about 7
+        // frames, each hiding well over 30% of the bowl. At least 3 leaves room for panels
+        // turned aside (±20° of the line of sight) and for the draws.
         assert!(
             in_front.iter().filter(|&&v| v < 0.7).count() >= 3,
             "{in_front:?}"
         );
-        // The panel hides even the tall box (21 cm) to under 45% at times.
+        // The panel hides even the tall box (21 cm) to under 45% at times. The floor: as above,
+        // about 10 of 24 frames have a panel (135 mm wide, 216 mm tall for the box), which
+        // stands between the camera and the middle of the box (lying, 60 mm tall, or on its
+        // side, 158 mm, about 13 cm in front) below about 55° of elevation, in about 6 frames;
+        // it hides over 55% of the box only where it covers the box's width too (its 135 mm
+        // against the 158–210 mm sides seen broadside), say a third of those: at least 2.
         let tall = visible_fractions(crate::ObjectKind::Box, 0, 2);
         assert!(tall.iter().filter(|&&v| v < 0.45).count() >= 2, "{tall:?}");
     }

@@ -26,13 +26,13 @@
 //! let dataset = BopDataset::new(dir.path());
 //! let can = SynthObject::built_in(ObjectKind::Can)?;
 //! let options = SynthOptions { frames: 2, ..SynthOptions::default() };
-//! let progress = indicatif::ProgressBar::hidden();
-//! let summary = synthesize(&dataset, "train", &[can], &options, &progress)?;
+//! // `&()`: no progress shown (the `ipdf` CLI passes a progress bar).
+//! let summary = synthesize(&dataset, "train", &[can], &options, &())?;
 //! assert_eq!((summary.frames, summary.rendered, summary.scenes), (2, 2, 1));
 //! let gt = read_scene_gt(&dataset.scene("train", 0).gt_path())?;
 //! assert_eq!(gt.len(), 2);
 //! // The same options again: the scene is complete and nothing is rendered.
-//! let again = synthesize(&dataset, "train", &[SynthObject::built_in(ObjectKind::Can)?], &options, &progress)?;
+//! let again = synthesize(&dataset, "train", &[SynthObject::built_in(ObjectKind::Can)?], &options, &())?;
 //! assert_eq!(again.rendered, 0);
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```

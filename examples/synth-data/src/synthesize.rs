@@ -4,7 +4,6 @@ use std::path::{Component, Path};
 use std::time::Instant;
 
 use depth_render::{DepthSensor, MaskErrors, Material};
-use indicatif::ProgressBar;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -14,9 +13,9 @@ use crate::frame::{Frame, FrameRenderer, FrameStyle, ViewRange};
 use crate::{SynthError, SynthObject};
 use bop_dataset::{
     BopCamera, BopDataset, DatasetInfo, FileError, GtInfo, GtInstance, Intrinsics, ModelInfo,
-    SceneDir, as_recorded, check_recorded, image_file_complete, read_scene_camera, read_scene_gt,
-    read_scene_gt_info, write_json, write_mesh_ply, write_models_info, write_scene_camera,
-    write_scene_gt, write_scene_gt_info,
+    Progress, SceneDir, as_recorded, check_recorded, image_file_complete, read_scene_camera,
+    read_scene_gt, read_scene_gt_info, write_json, write_mesh_ply, write_models_info,
+    write_scene_camera, write_scene_gt, write_scene_gt_info,
 };
 
 /// The paper's two kinds of synthetic dataset.
@@ -235,7 +234,8 @@ fn write_models(
 
 /// Renders `options.frames` frames of each of `objects` into `split` of `dataset` (object ids
 /// from 1 in the order given; object `k`'s frames fill consecutive scenes), skipping complete
-/// scenes. `progress` advances by one per frame.
+/// scenes. `progress` is told the split's frame count, then advances by one per frame (a
+/// complete scene's frames at once).
 ///
 /// Errors: no objects, no frames, a `split` that is not a plain folder name, a folder holding
 /// another dataset or a split generated with other options (see [`SYNTH_OPTIONS_FILE`]),
@@ -245,7 +245,7 @@ pub fn synthesize(
     split: &str,
     objects: &[SynthObject],
     options: &SynthOptions,
-    progress: &ProgressBar,
+    progress: &dyn Progress,
 ) -> Result<SynthSummary, SynthError> {
     if objects.is_empty() {
         return Err(SynthError::option("objects", "at least one object"));
@@ -260,23 +260,11 @@ pub fn synthesize(
     let started = Instant::now();
     write_models(dataset, split, objects, options)?;
     let scenes_per_object = options.frames.div_ceil(options.frames_per_scene);
+    progress.set_total((options.frames * objects.len()) as u64, 0);
     let (mut rendered, mut repaired) = (0, 0);
     for (k, object) in objects.iter().enumerate() {
         let renderer = FrameRenderer::new(&object.mesh)?;
-        let material = match options.variant {
-            Variant::Uniform => Material::Uniform(object.colour),
-            Variant::Texture => Material::Patches {
-                cell: 0.02,
-                seed: k as u64 + 1,
-            },
-        };
-        let style = FrameStyle {
-            material,
-            distractors: options.distractors,
-            occluders: options.occluders,
-            sensor: options.sensor,
-            mask_errors: options.mask_errors,
-        };
+        let style = frame_style(options, k, object);
         for chunk in 0..scenes_per_object {
             let scene_id = (k * scenes_per_object + chunk) as u32;
             let first = chunk * options.frames_per_scene;
@@ -284,44 +272,13 @@ pub fn synthesize(
             let scene = dataset.scene(split, scene_id);
             if scene.gt_info_path().exists() {
                 if scene_complete(&scene, count) {
-                    progress.inc(count as u64);
+                    progress.advance(count as u64);
                     continue;
                 }
                 repaired += 1;
             }
-            let obj_id = k as u32 + 1;
-            let frames: Vec<(u32, GtInstance, GtInfo)> = (0..count as u32)
-                .into_par_iter()
-                .map(|im_id| {
-                    let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
-                    rng.set_stream((u64::from(scene_id) << 32) | u64::from(im_id));
-                    let frame =
-                        renderer.render(&options.camera.camera, &options.view, &style, &mut rng)?;
-                    write_frame(&scene, im_id, &frame, &options.camera)?;
-                    progress.inc(1);
-                    Ok((
-                        im_id,
-                        GtInstance {
-                            obj_id,
-                            pose: frame.pose,
-                        },
-                        frame.info,
-                    ))
-                })
-                .collect::<Result<_, SynthError>>()?;
-            let intrinsics = Intrinsics {
-                fx: options.camera.camera.fx,
-                fy: options.camera.camera.fy,
-                cx: options.camera.camera.cx,
-                cy: options.camera.camera.cy,
-                depth_scale: options.camera.depth_scale,
-            };
-            let cameras = frames.iter().map(|f| (f.0, intrinsics)).collect();
-            let gt = frames.iter().map(|f| (f.0, vec![f.1.clone()])).collect();
-            let info = frames.iter().map(|f| (f.0, vec![f.2])).collect();
-            write_scene_camera(&scene.camera_path(), &cameras)?;
-            write_scene_gt(&scene.gt_path(), &gt)?;
-            write_scene_gt_info(&scene.gt_info_path(), &info)?;
+            let object = (k as u32 + 1, &renderer, &style);
+            render_scene(&scene, count, object, options, progress)?;
             rendered += count;
         }
     }
@@ -332,6 +289,69 @@ pub fn synthesize(
         scenes: scenes_per_object * objects.len(),
         seconds: started.elapsed().as_secs_f64(),
     })
+}
+
+/// How object `k` (from 0) looks in its frames: its flat colour or its own colour patches,
+/// and the options' distractors, occluders, sensor and mask errors.
+fn frame_style(options: &SynthOptions, k: usize, object: &SynthObject) -> FrameStyle {
+    let material = match options.variant {
+        Variant::Uniform => Material::Uniform(object.colour),
+        Variant::Texture => Material::Patches {
+            cell: 0.02,
+            seed: k as u64 + 1,
+        },
+    };
+    FrameStyle {
+        material,
+        distractors: options.distractors,
+        occluders: options.occluders,
+        sensor: options.sensor,
+        mask_errors: options.mask_errors,
+    }
+}
+
+/// Renders frames `0..count` of `scene` (in parallel) of the object `(obj_id, renderer,
+/// style)` and writes their images, then the scene's `scene_camera.json`, `scene_gt.json` and,
+/// last, `scene_gt_info.json`; `progress` advances by one per frame.
+fn render_scene(
+    scene: &SceneDir,
+    count: usize,
+    (obj_id, renderer, style): (u32, &FrameRenderer, &FrameStyle),
+    options: &SynthOptions,
+    progress: &dyn Progress,
+) -> Result<(), SynthError> {
+    let frames: Vec<(u32, GtInstance, GtInfo)> = (0..count as u32)
+        .into_par_iter()
+        .map(|im_id| {
+            let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
+            rng.set_stream((u64::from(scene.id) << 32) | u64::from(im_id));
+            let frame = renderer.render(&options.camera.camera, &options.view, style, &mut rng)?;
+            write_frame(scene, im_id, &frame, &options.camera)?;
+            progress.advance(1);
+            Ok((
+                im_id,
+                GtInstance {
+                    obj_id,
+                    pose: frame.pose,
+                },
+                frame.info,
+            ))
+        })
+        .collect::<Result<_, SynthError>>()?;
+    let intrinsics = Intrinsics {
+        fx: options.camera.camera.fx,
+        fy: options.camera.camera.fy,
+        cx: options.camera.camera.cx,
+        cy: options.camera.camera.cy,
+        depth_scale: options.camera.depth_scale,
+    };
+    let cameras = frames.iter().map(|f| (f.0, intrinsics)).collect();
+    let gt = frames.iter().map(|f| (f.0, vec![f.1.clone()])).collect();
+    let info = frames.iter().map(|f| (f.0, vec![f.2])).collect();
+    write_scene_camera(&scene.camera_path(), &cameras)?;
+    write_scene_gt(&scene.gt_path(), &gt)?;
+    write_scene_gt_info(&scene.gt_info_path(), &info)?;
+    Ok(())
 }
 
 /// Whether a finished `scene` (its `scene_gt_info.json` is written last) still holds every file

@@ -4,7 +4,7 @@ the scan (200,000 points sampled on it, nearest by k-d tree). Prints, per instan
 and 90th-percentile distance (mm) and the fraction within 5 mm, for the truth and every label.
 
 Usage: label a copy of the fixture first, then point this at it:
-    cp -r examples/ipdf/tests/data/ycbv_real /tmp/ycbv
+    cp -r examples/pseudo-label/tests/data/ycbv_real /tmp/ycbv
     ipdf label --dataset /tmp/ycbv --split test --sensor kinect
     python3 explained_depth.py /tmp/ycbv
 Reads only the fixture's own files (no source repository)."""

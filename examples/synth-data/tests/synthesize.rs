@@ -1,0 +1,244 @@
+//! A small split written by [`synth_data::synthesize`] and read back with `bop-dataset`'s
+//! readers, checked against what the scene must look like: the object rendered again alone at
+//! the written pose covers exactly the written mask, and its depth is the written depth; every
+//! frame is there once; the same seed writes the same bytes at any thread count.
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+use bop_dataset::{
+    BopDataset, Progress, read_depth, read_mask, read_models_info, read_scene_camera,
+    read_scene_gt, read_scene_gt_info,
+};
+use depth_render::{Instance, Scene, Window};
+use nalgebra::Point3;
+use synth_data::{ObjectKind, SynthObject, SynthOptions, synthesize};
+
+/// The objects of the split: the cracker box (convex, so that its centroid projects inside
+/// its silhouette) and the can.
+const OBJECTS: [ObjectKind; 2] = [ObjectKind::Box, ObjectKind::Can];
+
+/// 3 frames per object, 2 per scene: scenes 0 and 1 the box's (frames 0–1, then 2), 2 and 3
+/// the can's. Clean depth, exact masks, nothing else on the table.
+fn options(seed: u64) -> SynthOptions {
+    SynthOptions {
+        frames: 3,
+        frames_per_scene: 2,
+        seed,
+        ..SynthOptions::default()
+    }
+}
+
+fn objects() -> Vec<SynthObject> {
+    OBJECTS
+        .into_iter()
+        .map(|kind| SynthObject::built_in(kind).unwrap())
+        .collect()
+}
+
+/// Records what a job reports.
+#[derive(Default)]
+struct Recorded {
+    total: Mutex<Option<(u64, u64)>>,
+    advanced: Mutex<u64>,
+}
+
+impl Progress for Recorded {
+    fn set_total(&self, total: u64, done: u64) {
+        *self.total.lock().unwrap() = Some((total, done));
+    }
+
+    fn advance(&self, units: u64) {
+        *self.advanced.lock().unwrap() += units;
+    }
+}
+
+/// Every file under `root`, by path relative to it, with its bytes.
+fn files(root: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
+    let mut found = BTreeMap::new();
+    let mut folders = vec![root.to_path_buf()];
+    while let Some(folder) = folders.pop() {
+        for entry in std::fs::read_dir(&folder).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                folders.push(path);
+            } else {
+                let bytes = std::fs::read(&path).unwrap();
+                found.insert(path.strip_prefix(root).unwrap().to_path_buf(), bytes);
+            }
+        }
+    }
+    found
+}
+
+/// The pixels set in a row-major mask `width` wide: `[x, y, w, h]` of their bounding box, as
+/// BOP's `bbox_obj`.
+fn bounding_box(mask: &[bool], width: usize) -> [i64; 4] {
+    let (mut low, mut high) = ([usize::MAX; 2], [0; 2]);
+    for (i, _) in mask.iter().enumerate().filter(|(_, m)| **m) {
+        let (u, v) = (i % width, i / width);
+        low = [low[0].min(u), low[1].min(v)];
+        high = [high[0].max(u), high[1].max(v)];
+    }
+    [low[0], low[1], high[0] + 1 - low[0], high[1] + 1 - low[1]].map(|x| x as i64)
+}
+
+#[test]
+fn each_frame_shows_the_object_at_its_written_pose() {
+    let dir = tempfile::tempdir().unwrap();
+    let dataset = BopDataset::new(dir.path());
+    let objects = objects();
+    let progress = Recorded::default();
+    let summary = synthesize(&dataset, "train", &objects, &options(7), &progress).unwrap();
+    assert_eq!(
+        (summary.frames, summary.rendered, summary.scenes),
+        (6, 6, 4)
+    );
+    assert_eq!(*progress.total.lock().unwrap(), Some((6, 0)));
+    assert_eq!(*progress.advanced.lock().unwrap(), 6);
+    assert_eq!(dataset.scene_ids("train").unwrap(), [0, 1, 2, 3]);
+    // The box's diameter is its space diagonal: 60 × 158 × 210 mm.
+    let models = read_models_info(&dataset.models_info_path()).unwrap();
+    let diagonal = (60f64.powi(2) + 158f64.powi(2) + 210f64.powi(2)).sqrt();
+    assert!(
+        (models[&1].diameter - diagonal).abs() < 0.01,
+        "{}",
+        models[&1].diameter
+    );
+    let mut frames = 0;
+    for (scene_id, (k, frame_ids)) in [(0, [0, 1].as_slice()), (1, &[0]), (2, &[0, 1]), (3, &[0])]
+        .into_iter()
+        .map(|(scene, ids)| (scene, (scene as usize / 2, ids)))
+    {
+        let scene = dataset.scene("train", scene_id);
+        let gt = read_scene_gt(&scene.gt_path()).unwrap();
+        let info = read_scene_gt_info(&scene.gt_info_path()).unwrap();
+        let cameras = read_scene_camera(&scene.camera_path()).unwrap();
+        assert_eq!(gt.keys().copied().collect::<Vec<_>>(), frame_ids);
+        assert_eq!(cameras.len(), frame_ids.len());
+        let mesh = &objects[k].mesh;
+        let alone = Scene::new(std::slice::from_ref(mesh));
+        // The model's centroid: the mean of its vertices (the box's centre).
+        let centroid = Point3::from(
+            mesh.positions()
+                .iter()
+                .map(|p| p.coords.cast::<f64>())
+                .sum::<nalgebra::Vector3<f64>>()
+                / mesh.positions().len() as f64,
+        );
+        for &im_id in frame_ids {
+            frames += 1;
+            let [instance] = gt[&im_id].as_slice() else {
+                panic!("one instance per frame: {:?}", gt[&im_id]);
+            };
+            assert_eq!(instance.obj_id as usize, k + 1);
+            let intrinsics = cameras[&im_id];
+            let mask = read_mask(&scene.mask_path(im_id, 0)).unwrap();
+            let visible = read_mask(&scene.mask_visib_path(im_id, 0)).unwrap();
+            let depth = read_depth(&scene.depth_path(im_id), intrinsics.depth_scale).unwrap();
+            let camera = intrinsics.camera(mask.width, mask.height).unwrap().camera;
+            let width = camera.width as usize;
+            // Rendered again alone at the written pose: the silhouette is the mask, pixel for
+            // pixel, and nothing stands in front of any of it.
+            let rendering = alone
+                .render(
+                    &camera,
+                    &[Instance::new(0, instance.pose)],
+                    Window::full(&camera),
+                )
+                .unwrap();
+            let silhouette: Vec<bool> = rendering.instance.iter().map(Option::is_some).collect();
+            assert!(silhouette == mask.pixels, "scene {scene_id} image {im_id}");
+            assert!(
+                visible.pixels == mask.pixels,
+                "scene {scene_id} image {im_id}"
+            );
+            // Clean depth: the object's own depth on every pixel of it (to the PNG's 0.1 mm).
+            for (i, _) in mask.pixels.iter().enumerate().filter(|(_, m)| **m) {
+                let (read, rendered) = (depth.pixels[i], rendering.depth[i]);
+                assert!(
+                    (read - rendered).abs() < 1e-4,
+                    "pixel {i}: {read} {rendered}"
+                );
+            }
+            // Its boxes and counts are those of the masks.
+            let pixels = mask.pixels.iter().filter(|m| **m).count() as u64;
+            let with_depth = mask
+                .pixels
+                .iter()
+                .zip(&depth.pixels)
+                .filter(|(m, d)| **m && **d > 0.0)
+                .count() as u64;
+            let info = info[&im_id][0];
+            assert!(pixels > 1000, "{pixels}");
+            assert_eq!(
+                (info.px_count_all, info.px_count_valid, info.px_count_visib),
+                (pixels, with_depth, pixels)
+            );
+            assert_eq!(info.visib_fract, 1.0);
+            assert_eq!(info.bbox_obj, bounding_box(&mask.pixels, width));
+            assert_eq!(info.bbox_visib, info.bbox_obj);
+            // The centroid projects inside the box and, the object being convex, onto it.
+            let pixel = camera.project(&(instance.pose * centroid)).unwrap();
+            let [x, y, w, h] = info.bbox_obj.map(|v| v as f64);
+            assert!((x..x + w).contains(&pixel.x) && (y..y + h).contains(&pixel.y));
+            let (u, v) = (pixel.x as usize, pixel.y as usize);
+            assert!(mask.pixels[v * width + u], "{pixel}");
+        }
+    }
+    assert_eq!(frames, 6);
+    // Run again: every scene is complete, nothing is rendered, and the progress is all there.
+    let again = Recorded::default();
+    let summary = synthesize(&dataset, "train", &objects, &options(7), &again).unwrap();
+    assert_eq!((summary.rendered, summary.repaired), (0, 0));
+    assert_eq!(*again.advanced.lock().unwrap(), 6);
+}
+
+#[test]
+fn a_seed_writes_the_same_bytes_at_any_thread_count_and_another_seed_other_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, seed: u64, threads: usize| {
+        let root = dir.path().join(name);
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            synthesize(
+                &BopDataset::new(&root),
+                "train",
+                &objects(),
+                &options(seed),
+                &(),
+            )
+        })
+        .unwrap();
+        files(&root)
+    };
+    let first = write("first", 7, 1);
+    let again = write("again", 7, 3);
+    // Models, camera, dataset info, options, and per scene 3 JSON files and per frame
+    // rgb, depth, mask and mask_visib.
+    assert_eq!(first.len(), 2 + 1 + 1 + 1 + 1 + 4 * 3 + 6 * 4);
+    assert_eq!(
+        first.keys().collect::<Vec<_>>(),
+        again.keys().collect::<Vec<_>>()
+    );
+    for (path, bytes) in &first {
+        assert!(*bytes == again[path], "{} differs", path.display());
+    }
+    let other = write("other", 8, 1);
+    assert_eq!(
+        first.keys().collect::<Vec<_>>(),
+        other.keys().collect::<Vec<_>>()
+    );
+    for (path, bytes) in &first {
+        let name = path.to_string_lossy();
+        if name.contains("depth/") || name.ends_with("scene_gt.json") {
+            assert!(
+                *bytes != other[path],
+                "{name} is the same for seeds 7 and 8"
+            );
+        }
+    }
+}
