@@ -16,8 +16,13 @@
 //! still chooses the wider kernels.
 //!
 //! ```
-//! let missing = ipdf_model::missing_kernel_settings();
-//! assert!(missing.len() <= ipdf_model::REPRODUCIBLE_CPU_KERNELS.len());
+//! use ipdf_model::{kernel_settings, missing_kernel_settings};
+//!
+//! // A setting is missing exactly when this process's environment lacks it.
+//! let missing = missing_kernel_settings();
+//! for (name, value) in kernel_settings() {
+//!     assert_eq!(missing.iter().any(|(n, _)| *n == name), value.is_none(), "{name}");
+//! }
 //! ```
 
 /// The environment that pins libtorch's CPU kernels to AVX2 code paths:
@@ -33,9 +38,14 @@ pub const REPRODUCIBLE_CPU_KERNELS: [(&str, &str); 3] = [
 
 /// The settings of [`REPRODUCIBLE_CPU_KERNELS`] that this process's environment lacks.
 pub fn missing_kernel_settings() -> Vec<(&'static str, &'static str)> {
+    missing_from(|name| std::env::var_os(name).is_some())
+}
+
+/// The settings of [`REPRODUCIBLE_CPU_KERNELS`] whose variable `is_set` says is unset.
+fn missing_from(is_set: impl Fn(&str) -> bool) -> Vec<(&'static str, &'static str)> {
     REPRODUCIBLE_CPU_KERNELS
         .into_iter()
-        .filter(|(name, _)| std::env::var_os(name).is_none())
+        .filter(|(name, _)| !is_set(name))
         .collect()
 }
 
@@ -46,4 +56,21 @@ pub fn kernel_settings() -> Vec<(&'static str, Option<String>)> {
         .into_iter()
         .map(|(name, _)| (name, std::env::var(name).ok()))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_the_unset_variables_are_missing() {
+        assert_eq!(missing_from(|_| false), REPRODUCIBLE_CPU_KERNELS);
+        assert!(missing_from(|_| true).is_empty());
+        // A variable the user set (say to wider kernels) is left alone; the others are added.
+        let missing = missing_from(|name| name == "ATEN_CPU_CAPABILITY");
+        assert_eq!(
+            missing,
+            [("ONEDNN_MAX_CPU_ISA", "AVX2"), ("MKL_CBWR", "AVX2,STRICT")]
+        );
+    }
 }

@@ -283,14 +283,18 @@ proptest! {
             prop_assert!(crop_volume.contains(&t), "{t:?} outside {crop_volume:?}");
         }
         // No wider than the span's square at the farthest depth plus how far its edges' rays
-        // move between the nearest and farthest depth: narrow wherever the crop is.
+        // move between the nearest and farthest depth, nor than the working volume: narrow
+        // wherever the crop is (a crop volume that were the whole working volume fails here
+        // whenever the crop's frustum is narrower than it).
         let half = 0.5 * ipdf_model::translation::CROP_VOLUME_SPAN * side;
-        let slope = ((centre_x - half - cx - 0.5).abs()).max((centre_x + half - cx - 0.5).abs()) / 600.0;
+        let (left, right) = ((centre_x - half - cx - 0.5) / 600.0, (centre_x + half - cx - 0.5) / 600.0);
+        let slope = left.abs().max(right.abs());
         let width = 2.0 * half * 1300.0 / 600.0;
         let extent = crop_volume.extent().x;
-        prop_assert!(extent <= (width + slope * 900.0 + 1e-9).max(2.0 * half_width), "{extent} vs {width}");
-        // As wide as that square wherever the working volume reaches that far.
-        if width + 1e-9 < 2.0 * half_width && crop_volume.max[0] < half_width && crop_volume.min[0] > -half_width {
+        prop_assert!(extent <= (width + slope * 900.0).min(2.0 * half_width) + 1e-9, "{extent} vs {width}");
+        // As wide as that square wherever the working volume holds it at the farthest depth
+        // (decided from the inputs, not from the crop volume found).
+        if left * 1300.0 >= -half_width && right * 1300.0 <= half_width {
             prop_assert!(extent >= width - 1e-9, "{extent} vs {width}");
         }
     }

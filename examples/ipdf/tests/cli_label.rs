@@ -139,27 +139,41 @@ fn a_killed_labelling_run_resumes_to_the_same_files() {
     synth(killed.path(), "box", 6, &["--frames-per-scene", "1"]);
     ipdf_json(&["label", "--dataset", s(whole.path())]);
 
+    // The last scene's depth image is a named pipe nobody writes: one labelling thread takes
+    // the scenes in order, writes the first five and waits there, so it is killed at a known
+    // point, whatever the machine's load.
+    let last_depth = killed.path().join("train/000005/depth/000000.png");
+    let depth = std::fs::read(&last_depth).unwrap();
+    std::fs::remove_file(&last_depth).unwrap();
+    assert!(
+        Command::new("mkfifo")
+            .arg(&last_depth)
+            .status()
+            .unwrap()
+            .success()
+    );
     let mut child = Command::new(env!("CARGO_BIN_EXE_ipdf"))
         .args(["label", "--dataset", s(killed.path()), "--threads", "1"])
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::null())
         .spawn()
         .unwrap();
-    let started = Instant::now();
-    while pseudo_gt_files(killed.path()).is_empty() && started.elapsed() < Duration::from_secs(300)
-    {
+    let waiting = Instant::now();
+    while pseudo_gt_files(killed.path()).len() < 5 && waiting.elapsed() < Duration::from_secs(600) {
         std::thread::sleep(Duration::from_millis(20));
     }
     child.kill().unwrap();
     child.wait().unwrap();
-    let done = pseudo_gt_files(killed.path()).len();
-    assert!(
-        (1..6).contains(&done),
-        "{done} scenes were labelled before the kill"
+    assert_eq!(
+        pseudo_gt_files(killed.path()).len(),
+        5,
+        "scenes labelled before the kill"
     );
+    std::fs::remove_file(&last_depth).unwrap();
+    std::fs::write(&last_depth, depth).unwrap();
 
     let resumed = ipdf_json(&["label", "--dataset", s(killed.path())]);
-    assert_eq!(resumed["scenes_skipped"].as_u64().unwrap() as usize, done);
+    assert_eq!(resumed["scenes_skipped"].as_u64().unwrap(), 5);
     assert_eq!(
         pseudo_gt_files(killed.path()),
         pseudo_gt_files(whole.path())

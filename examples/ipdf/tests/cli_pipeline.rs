@@ -59,7 +59,9 @@ fn a_miniature_pipeline_writes_every_artefact() {
             let llh = scores["llh"].as_f64().unwrap();
             let maad = scores["maad_deg"].as_f64().unwrap();
             let recall = scores["recall_maad_deg"].as_f64().unwrap();
-            // Barely trained: near the uniform density (−2.29), but finite and in range.
+            // Format checks, not accuracy: two epochs of a few steps learn too little for a
+            // bound a correct model must meet (the demo's figures: docs/results.md). LLH near
+            // the uniform density (−2.29), angles within [0°, 180°].
             assert!(
                 llh.is_finite() && llh > -20.0 && llh < 10.0,
                 "{labels} {object}: {scores}"
@@ -91,6 +93,7 @@ fn a_miniature_pipeline_writes_every_artefact() {
                 assert!(translation.is_null() && !figure.exists(), "{scores}");
                 continue;
             }
+            // Format checks, as above: an error is a finite distance, the joint LLH the sum.
             let error = translation["median_error_mm"].as_f64().unwrap();
             let llh = translation["llh"].as_f64().unwrap();
             assert!(

@@ -46,7 +46,7 @@ pub fn on_threads<T: Sync>(
 
 #[cfg(test)]
 mod tests {
-    use std::sync::Mutex;
+    use std::sync::{Arc, Condvar, Mutex};
 
     use super::*;
 
@@ -66,22 +66,55 @@ mod tests {
         }
     }
 
+    /// Set when the thread that owns it exits: a scoped worker thread exits only after its
+    /// loop has returned, so after `on_threads` has stopped handing out items.
+    struct OnExit(Arc<(Mutex<bool>, Condvar)>);
+
+    impl Drop for OnExit {
+        fn drop(&mut self) {
+            let (flag, signal) = &*self.0;
+            *flag.lock().unwrap() = true;
+            signal.notify_all();
+        }
+    }
+
+    thread_local! {
+        static EXIT: std::cell::RefCell<Option<OnExit>> = const { std::cell::RefCell::new(None) };
+    }
+
     #[test]
     fn the_first_error_stops_new_items_and_is_returned() {
-        for workers in [1, 2] {
-            let started = AtomicUsize::new(0);
+        for workers in [1, 2, 3] {
+            let started = Mutex::new(Vec::new());
+            let failed_worker_gone = Arc::new((Mutex::new(false), Condvar::new()));
             let items: Vec<usize> = (0..50).collect();
             let outcome = on_threads(&items, workers, |&i| {
-                started.fetch_add(1, Ordering::Relaxed);
+                started.lock().unwrap().push(i);
                 if i == 3 {
+                    // Marks this worker's exit, which follows the end of its loop.
+                    EXIT.with(|exit| *exit.borrow_mut() = Some(OnExit(failed_worker_gone.clone())));
                     return Err(Error::option("item", format!("{i} failed")));
                 }
-                std::thread::sleep(std::time::Duration::from_millis(20));
+                if i > 3 {
+                    // Items after the failing one finish only once its worker has left.
+                    let (flag, signal) = &*failed_worker_gone;
+                    let _gone = signal
+                        .wait_while(flag.lock().unwrap(), |gone| !*gone)
+                        .unwrap();
+                }
                 Ok(())
             });
             assert_eq!(outcome.unwrap_err().to_string(), "item: 3 failed");
-            // Only items taken before item 3 failed (the others take 20 ms each) were started.
-            assert!(started.into_inner() <= 3 + 2 * workers, "{workers} workers");
+            // Items are handed out in order; once item 3 has failed, each other worker finishes
+            // at most the one item it holds and takes no other.
+            let mut started = started.into_inner().unwrap();
+            started.sort_unstable();
+            let expected: Vec<usize> = (0..started.len()).collect();
+            assert_eq!(started, expected, "{workers} workers");
+            assert!(
+                started.len() <= 4 + (workers - 1),
+                "{workers} workers: {started:?}"
+            );
         }
     }
 
