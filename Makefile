@@ -4,7 +4,7 @@ CARGO ?= cargo
 LIBTORCH_STAMP := .libtorch/.complete-2.11.0
 BENCH_VENV := .venv-bench
 
-.PHONY: setup demo test bench bench-python lint
+.PHONY: setup demo test downstream-check bench bench-python lint
 
 # CPU libtorch 2.11.0 for tch (skipped when LIBTORCH is set in the environment).
 setup: $(if $(LIBTORCH),,$(LIBTORCH_STAMP))
@@ -22,6 +22,11 @@ demo: setup
 test: setup
 	$(CARGO) test --workspace --all-targets
 	$(CARGO) test --workspace --doc
+	CARGO=$(CARGO) scripts/downstream-check.sh
+
+# The libtorch-free libraries from a crate outside the workspace, resolved afresh (no Cargo.lock).
+downstream-check:
+	CARGO=$(CARGO) scripts/downstream-check.sh
 
 lint: setup
 	$(CARGO) fmt --all --check

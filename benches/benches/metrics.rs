@@ -2,7 +2,7 @@
 //! the library's fused rayon loop and, as the alternative it was chosen over, faer GEMM.
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use faer::{Accum, Mat, Par};
-use metrics::{Distribution, RECALL_THRESHOLD, llh, maad, recall_maad};
+use ipdf_metrics::{Distribution, RECALL_THRESHOLD, llh, maad, recall_maad};
 use nalgebra::UnitQuaternion;
 use rayon::prelude::*;
 use so3_grid::{Grid, geodesic_distance, random_rotations};

@@ -34,10 +34,11 @@ impl RestingPose {
 ///
 /// Fails for meshes whose convex hull is flat or degenerate.
 pub fn resting_poses(mesh: &TriangleMesh) -> Result<Vec<RestingPose>, RenderError> {
-    let points: Vec<glam::Vec3> = mesh
+    // parry3d's own vector type (its glam), so that no glam of ours has to match its version.
+    let points: Vec<parry3d::math::Vector> = mesh
         .positions()
         .iter()
-        .map(|p| glam::Vec3::new(p.x, p.y, p.z))
+        .map(|p| parry3d::math::Vector::new(p.x, p.y, p.z))
         .collect();
     let (hull_points, hull_triangles) =
         parry3d::transformation::try_convex_hull(&points).map_err(|e| {

@@ -1,5 +1,5 @@
 //! Primitive shapes described by their dimensions, with their analytic symmetries (so synthetic
-//! data comes with exact ground-truth symmetry sets; `metrics::SymmetryGroup::about_origin`
+//! data comes with exact ground-truth symmetry sets; `ipdf_metrics::SymmetryGroup::about_origin`
 //! turns them into the scoring crate's groups).
 use nalgebra::{Matrix3, Rotation3, Unit, UnitQuaternion, Vector3};
 

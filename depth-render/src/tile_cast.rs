@@ -10,7 +10,6 @@
 //! `d·(C×A)` have the same sign (pixels on an edge belong to both triangles). An edge shared by
 //! two triangles yields exactly negated products in both, so no ray slips through a seam. The
 //! hit's z-depth is `n·A / n·d` with `n = (B−A)×(C−A)`.
-use glam::Vec3A;
 use nalgebra::{Isometry3, Matrix3, Vector3};
 use obvhs::BvhBuildParams;
 use obvhs::bvh2::builder::build_bvh2_from_tris;
@@ -45,7 +44,9 @@ impl MeshBvh {
     pub(crate) fn new(mesh: &TriangleMesh) -> Self {
         let triangles: Vec<Triangle> = (0..mesh.triangles().len())
             .map(|t| {
-                let [v0, v1, v2] = mesh.corners(t).map(|p| Vec3A::new(p.x, p.y, p.z));
+                // `.into()` builds obvhs' own `Vec3A` (the glam it resolved to): naming glam
+                // here would need a requirement that resolves to the same version.
+                let [v0, v1, v2] = mesh.corners(t).map(|p| [p.x, p.y, p.z].into());
                 Triangle { v0, v1, v2 }
             })
             .collect();

@@ -5,7 +5,7 @@ use depth_render::{
     Instance, PinholeCamera, Primitive, RenderError, Scene, TriangleMesh, Window,
     group_by_symmetry, primitives, resting_poses,
 };
-use metrics::SymmetryGroup;
+use ipdf_metrics::SymmetryGroup;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use proptest::prelude::*;
 

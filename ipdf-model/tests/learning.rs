@@ -8,7 +8,7 @@ use ipdf_model::rotation::{
     TrainOptions, Trainer, UNDER_RESOLUTION_LIMIT,
 };
 use ipdf_model::{Augmentation, LearningRateSchedule, ModelConfig, RefineOptions};
-use metrics::{
+use ipdf_metrics::{
     Distribution, GridCell, RECALL_THRESHOLD, llh, maad, nearest_distances, recall_maad,
 };
 use nalgebra::UnitQuaternion;
@@ -71,7 +71,7 @@ struct HierarchyGaps {
     llh: f64,
     /// The same for the hierarchy evaluated in bfloat16 against the dense float32 grid.
     llh_bf16: f64,
-    /// Mean |ΔLLH| of the cell-based log-likelihood (`metrics::llh`: the density of the cell
+    /// Mean |ΔLLH| of the cell-based log-likelihood (`ipdf_metrics::llh`: the density of the cell
     /// holding each ground-truth rotation).
     cell_llh: f64,
     /// Mean |ΔMAAD|, degrees.

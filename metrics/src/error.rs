@@ -1,6 +1,6 @@
 use so3_grid::GridError;
 
-/// Errors of the `metrics` crate.
+/// Errors of the `ipdf-metrics` crate.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum MetricsError {

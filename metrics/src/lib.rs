@@ -11,7 +11,7 @@
 //! [`SymmetryGroup`] (BOP `models_info.json` form) expands one pose into its full symmetry set.
 //!
 //! ```
-//! use metrics::{llh, maad, recall_maad, Distribution, SymmetryGroup, RECALL_THRESHOLD};
+//! use ipdf_metrics::{llh, maad, recall_maad, Distribution, SymmetryGroup, RECALL_THRESHOLD};
 //! use nalgebra::{UnitQuaternion, Vector3};
 //! use so3_grid::Grid;
 //!
@@ -33,7 +33,7 @@
 //! let peaked = Distribution::dense(&grid, masses)?;
 //! assert!(maad(&peaked, &gt_set)? < 5.0);
 //! assert!(recall_maad(&peaked, &gt_set, RECALL_THRESHOLD)? < 5.0);
-//! # Ok::<(), metrics::MetricsError>(())
+//! # Ok::<(), ipdf_metrics::MetricsError>(())
 //! ```
 //!
 //! Poses of objects are scored in BOP's conventions (model → camera, `x_cam = R·x + t`, mm) by
@@ -42,7 +42,7 @@
 //! accuracy–threshold curve:
 //!
 //! ```
-//! use metrics::{ModelPoints, add, add_s, auc, translation_error};
+//! use ipdf_metrics::{ModelPoints, add, add_s, auc, translation_error};
 //! use nalgebra::{Isometry3, Point3, Vector3};
 //!
 //! // The 8 corners of a 20 mm cube; it is symmetric under quarter turns about z.
@@ -65,7 +65,7 @@
 //! // ADD-S AUC up to 10 % of the diameter (3.46 mm): errors 0 and 5 mm score 1 and 0.
 //! let errors = [add_s(&cube, &turned, &truth), add_s(&cube, &shifted, &truth)];
 //! assert!((auc(&errors, 0.1 * cube.diameter())? - 0.5).abs() < 1e-6);
-//! # Ok::<(), metrics::MetricsError>(())
+//! # Ok::<(), ipdf_metrics::MetricsError>(())
 //! ```
 
 mod distribution;

@@ -1,5 +1,5 @@
 //! Invariants of the pose errors (ADD, ADD-S, translation error) and of their AUC.
-use metrics::{MetricsError, ModelPoints, SymmetryGroup, add, add_s, auc, translation_error};
+use ipdf_metrics::{MetricsError, ModelPoints, SymmetryGroup, add, add_s, auc, translation_error};
 use nalgebra::{Isometry3, Point3, Translation3, Vector3};
 use proptest::prelude::*;
 

@@ -1,7 +1,7 @@
 //! The paper's metric definitions checked on distributions with known answers.
 use std::f64::consts::{FRAC_PI_2, PI};
 
-use metrics::{
+use ipdf_metrics::{
     Distribution, GridCell, MetricsError, RECALL_THRESHOLD, SymmetryGroup, llh, maad, recall_maad,
     recall_min_log_density,
 };
@@ -23,7 +23,7 @@ fn test_group(kind: u8) -> SymmetryGroup {
     let half_turn = |axis: Vector3<f64>| nalgebra::Isometry3::rotation(axis * PI);
     match kind % 3 {
         0 => {
-            group.continuous.push(metrics::ContinuousSymmetry {
+            group.continuous.push(ipdf_metrics::ContinuousSymmetry {
                 axis: Vector3::z_axis(),
                 offset: Vector3::zeros(),
             });
@@ -36,7 +36,7 @@ fn test_group(kind: u8) -> SymmetryGroup {
                 half_turn(Vector3::z()),
             ];
         }
-        _ => group.continuous.push(metrics::ContinuousSymmetry {
+        _ => group.continuous.push(ipdf_metrics::ContinuousSymmetry {
             axis: Vector3::y_axis(),
             offset: Vector3::zeros(),
         }),
@@ -55,7 +55,7 @@ proptest! {
         let rotations = random_rotations(6, seed);
         let truth = rotations[0];
         let set = group.expand(&truth);
-        let sampled = metrics::nearest_distances(&rotations[1..], &set);
+        let sampled = ipdf_metrics::nearest_distances(&rotations[1..], &set);
         for (rotation, sampled) in rotations[1..].iter().zip(sampled) {
             let exact = group.class_distances(&truth, rotation).into_iter().fold(f64::INFINITY, f64::min);
             // (nearest_distances is exact to 1e-4 rad away from the set.)

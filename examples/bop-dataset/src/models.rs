@@ -3,7 +3,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use depth_render::TriangleMesh;
-use metrics::SymmetryGroup;
+use ipdf_metrics::SymmetryGroup;
 use serde_json::{Value, json};
 
 use crate::FileError;
@@ -100,7 +100,7 @@ pub fn read_models_info(path: &Path) -> Result<BTreeMap<u32, ModelInfo>, FileErr
             Ok(Some(out))
         };
         let symmetry = SymmetryGroup::from_bop_json(entry).map_err(|e| match e {
-            metrics::MetricsError::InvalidSymmetry { field, reason } => {
+            ipdf_metrics::MetricsError::InvalidSymmetry { field, reason } => {
                 FileError::new(path, format!("{prefix}{field}"), reason)
             }
             other => FileError::new(path, format!("{obj_id}"), other.to_string()),

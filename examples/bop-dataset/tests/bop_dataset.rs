@@ -38,7 +38,7 @@ fn the_writers_round_trip_through_the_readers() {
         segments: 32,
     };
     let shape = can.symmetry().unwrap();
-    let group = metrics::SymmetryGroup::about_origin(&shape.discrete, &shape.continuous);
+    let group = ipdf_metrics::SymmetryGroup::about_origin(&shape.discrete, &shape.continuous);
     let info = ModelInfo::of_mesh(&can.mesh().unwrap(), &group);
     let models = BTreeMap::from([
         (1, info.clone()),

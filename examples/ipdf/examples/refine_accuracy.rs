@@ -16,7 +16,7 @@ use ipdf::run_info::{RUN_FILE, RunInfo};
 use ipdf::training_data::{ExampleOptions, load_examples, to_unit_floats};
 use ipdf_model::RefineOptions;
 use ipdf_model::rotation::{ImplicitPdf, Predictor};
-use metrics::maad;
+use ipdf_metrics::maad;
 
 fn main() -> Result<()> {
     let mut args = std::env::args().skip(1);

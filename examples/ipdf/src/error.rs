@@ -26,7 +26,7 @@ pub enum Error {
     Model(#[from] ipdf_model::ModelError),
     /// Scores of distributions.
     #[error(transparent)]
-    Metrics(#[from] metrics::MetricsError),
+    Metrics(#[from] ipdf_metrics::MetricsError),
     /// A figure that could not be drawn.
     #[error("figure: {0}")]
     Figure(String),

@@ -18,7 +18,7 @@ use bop_dataset::{
     BopDataset, FileError, Intrinsics, PseudoInstance, SceneDir, read_models_info, read_pseudo_gt,
     read_scene_camera, read_scene_gt, read_scene_gt_info,
 };
-use metrics::{CONTINUOUS_STEPS, SymmetryGroup};
+use ipdf_metrics::{CONTINUOUS_STEPS, SymmetryGroup};
 
 use crate::Error;
 

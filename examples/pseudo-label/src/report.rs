@@ -10,7 +10,7 @@ use bop_dataset::{
     BopDataset, FileError, GtInstance, ModelInfo, PseudoInstance, SceneDir, read_models_info,
     read_pseudo_gt, read_scene_gt, read_scene_gt_info, write_atomically, write_json,
 };
-use metrics::SymmetryGroup;
+use ipdf_metrics::SymmetryGroup;
 
 use serde::{Deserialize, Serialize};
 
@@ -76,7 +76,7 @@ pub struct ObjectLabelScores {
     #[serde(skip)]
     pub errors_deg: Vec<f64>,
     /// Mean over labelled instances of the fraction of symmetry classes
-    /// ([`metrics::SymmetryGroup::classes`]: the identity and each discrete symmetry, with its
+    /// ([`ipdf_metrics::SymmetryGroup::classes`]: the identity and each discrete symmetry, with its
     /// continuous orbit) within 5° of a label.
     pub coverage: f64,
 }

@@ -19,7 +19,7 @@ use common::{copy_dir, label_split};
 use depth_render::{
     Instance, Scene, Window, load_mesh, sample_surface, visible_surface_discrepancy,
 };
-use metrics::{ModelPoints, add, add_s};
+use ipdf_metrics::{ModelPoints, add, add_s};
 use nalgebra::{Isometry3, Point3, Vector3};
 use pseudo_label::LabelOptions;
 

@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use depth_render::{MeshRepairs, Primitive, TriangleMesh, load_mesh};
-use metrics::SymmetryGroup;
+use ipdf_metrics::SymmetryGroup;
 
 use bop_dataset::FileError;
 

@@ -4,7 +4,7 @@
 
 use depth_render::{Instance, Lighting, Material, PinholeCamera, Primitive, Scene, Window};
 use ipdf_model::{CropOptions, crop_object, crops_to_tensor};
-use metrics::SymmetryGroup;
+use ipdf_metrics::SymmetryGroup;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -74,7 +74,7 @@ pub fn cube_renders(count: usize, seed: u64, size: usize) -> CubeRenders {
         poses,
         group: {
             let shape = cube.symmetry().unwrap();
-            metrics::SymmetryGroup::about_origin(&shape.discrete, &shape.continuous)
+            ipdf_metrics::SymmetryGroup::about_origin(&shape.discrete, &shape.continuous)
         },
     }
 }

@@ -6,7 +6,7 @@
 use indicatif::ProgressBar;
 use ipdf_model::rotation::{ArgmaxOptions, ImplicitPdf, Predictor};
 use ipdf_model::{CellMasses, RefineOptions};
-use metrics::{Distribution, GridCell, RECALL_THRESHOLD, maad, recall_maad};
+use ipdf_metrics::{Distribution, GridCell, RECALL_THRESHOLD, maad, recall_maad};
 use nalgebra::UnitQuaternion;
 use so3_grid::Grid;
 

@@ -11,7 +11,7 @@ use ipdf_model::translation::{
     TranslationPredictor,
 };
 use ipdf_model::{CellMasses, default_device};
-use metrics::{ModelPoints, add_s, auc, translation_error};
+use ipdf_metrics::{ModelPoints, add_s, auc, translation_error};
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 use tch::Tensor;

@@ -1,7 +1,7 @@
 //! `report.json` (for machines) and `report.md` (the same as tables for people).
 use std::collections::BTreeMap;
 
-use metrics::{RECALL_THRESHOLD, recall_min_log_density};
+use ipdf_metrics::{RECALL_THRESHOLD, recall_min_log_density};
 use serde::{Deserialize, Serialize};
 
 use super::config::PipelineConfig;
