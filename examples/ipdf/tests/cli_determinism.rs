@@ -3,21 +3,13 @@
 //! bits on one thread as on two, and labelling never depended on threads.
 mod common;
 
-use common::{ipdf_json, s};
+use common::{BRIEF_TRAINING, ipdf_json, s, synth, train_args};
 
 #[test]
 fn training_and_labelling_give_the_same_bits_on_one_and_two_threads() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("data");
-    ipdf_json(&[
-        "synth",
-        "--out",
-        s(&data),
-        "--objects",
-        "box",
-        "--frames",
-        "6",
-    ]);
+    synth(&data, "box", 6, &[]);
     let mut labels = Vec::new();
     for threads in ["1", "2"] {
         let copy = dir.path().join(format!("data_{threads}"));
@@ -30,35 +22,19 @@ fn training_and_labelling_give_the_same_bits_on_one_and_two_threads() {
     let mut weights = Vec::new();
     for threads in ["1", "2"] {
         let run = dir.path().join(format!("run_{threads}"));
-        let result = ipdf_json(&[
-            "train",
-            "--dataset",
-            s(&data),
-            "--labels",
-            "pseudo",
-            "--out",
-            s(&run),
-            "--val-split",
-            "none",
+        let mut args = train_args(&data, "pseudo", &["--out", s(&run), "--val-split", "none"]);
+        args.extend([
             "--encoder",
             "small-cnn",
             "--input-size",
             "32",
             "--head",
             "32,32",
-            "--query-level",
-            "1",
-            "--epochs",
-            "2",
-            "--steps-per-epoch",
-            "3",
-            "--batch-size",
-            "4",
-            "--learning-rate",
-            "4e-3",
-            "--threads",
-            threads,
         ]);
+        args.extend(["--query-level", "1"]);
+        args.extend(BRIEF_TRAINING);
+        args.extend(["--learning-rate", "4e-3", "--threads", threads]);
+        let result = ipdf_json(&args);
         let checkpoint = std::fs::read_dir(&run)
             .unwrap()
             .map(|entry| entry.unwrap().path())

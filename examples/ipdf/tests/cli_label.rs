@@ -7,24 +7,7 @@ use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use common::{assert_fails, ipdf_json, s};
-use serde_json::Value;
-
-/// `ipdf synth` of `objects` into `dir` with `extra` flags.
-fn synth(dir: &Path, objects: &str, frames: usize, extra: &[&str]) -> Value {
-    let frames = frames.to_string();
-    let mut args = vec![
-        "synth",
-        "--out",
-        s(dir),
-        "--objects",
-        objects,
-        "--frames",
-        &frames,
-    ];
-    args.extend_from_slice(extra);
-    ipdf_json(&args)
-}
+use common::{assert_fails, ipdf_json, read_json, s, synth, synth_args};
 
 /// Every `scene_pseudo_gt.json` of the dataset's train split, by scene folder name.
 fn pseudo_gt_files(dir: &Path) -> Vec<(String, Vec<u8>)> {
@@ -86,7 +69,7 @@ fn labels_recover_the_symmetry_sets_of_a_can_and_a_box() {
             s(&report),
         ]);
         assert_eq!(run["instances"], 12, "{name}: {run}");
-        let scores: Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+        let scores = read_json(&report);
         assert!(report.with_extension("md").exists());
         let figure = image::open(report.with_extension("png")).unwrap();
         assert_eq!((figure.width(), figure.height()), (560, 460));
@@ -203,7 +186,7 @@ fn bad_instances_are_recorded_and_the_run_goes_on() {
     write_mask(&mask(0, 0), 640, 480, [0, 0, 0, 0]);
     std::fs::copy(mask(1, 0), mask(0, 1)).unwrap();
     let gt_path = scene.join("scene_gt.json");
-    let mut gt: Value = serde_json::from_slice(&std::fs::read(&gt_path).unwrap()).unwrap();
+    let mut gt = read_json(&gt_path);
     let mut unknown = gt["0"][0].clone();
     unknown["obj_id"] = 9.into();
     gt["0"].as_array_mut().unwrap().push(unknown);
@@ -220,9 +203,7 @@ fn bad_instances_are_recorded_and_the_run_goes_on() {
     assert_eq!(run["instances"], 6, "{run}");
     assert_eq!(run["failed"], 5, "{run}");
     assert_eq!(run["labelled"], 1, "{run}");
-    let labels: Value =
-        serde_json::from_slice(&std::fs::read(scene.join("scene_pseudo_gt.json")).unwrap())
-            .unwrap();
+    let labels = read_json(&scene.join("scene_pseudo_gt.json"));
     let error = |im: &str, k: usize| labels[im][k]["error"].as_str().unwrap_or("").to_string();
     assert!(error("0", 0).contains("the mask is empty"), "{labels}");
     assert!(error("0", 1).contains("object 9"), "{labels}");
@@ -260,10 +241,7 @@ fn a_mesh_at_the_wrong_scale_is_warned_about() {
         "0.0004",
     ]);
     assert_eq!(run["warnings"], 2, "{run}");
-    let labels: Value = serde_json::from_slice(
-        &std::fs::read(dir.path().join("train/000000/scene_pseudo_gt.json")).unwrap(),
-    )
-    .unwrap();
+    let labels = read_json(&dir.path().join("train/000000/scene_pseudo_gt.json"));
     let instance = &labels["0"][0];
     assert!(
         instance["warning"]
@@ -366,18 +344,7 @@ fn bad_flags_and_missing_inputs_fail_with_one_line() {
     // A dataset made with other objects is not overwritten.
     let made = dir.path().join("made");
     synth(&made, "box", 1, &[]);
-    assert_fails(
-        &[
-            "synth",
-            "--out",
-            s(&made),
-            "--objects",
-            "can",
-            "--frames",
-            "1",
-        ],
-        "other objects",
-    );
+    assert_fails(&synth_args(&made, "can", "1", &[]), "other objects");
 }
 
 #[test]
@@ -390,10 +357,7 @@ fn an_instance_no_pose_explains_keeps_its_best_pose_for_inspection() {
         (&run["labelled"], &run["failures"]["no pose accepted"]),
         (&0.into(), &2.into())
     );
-    let labels: Value = serde_json::from_slice(
-        &std::fs::read(dir.path().join("train/000000/scene_pseudo_gt.json")).unwrap(),
-    )
-    .unwrap();
+    let labels = read_json(&dir.path().join("train/000000/scene_pseudo_gt.json"));
     for instance in labels
         .as_object()
         .unwrap()

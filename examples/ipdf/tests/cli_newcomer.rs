@@ -6,7 +6,9 @@ mod common;
 
 use std::path::Path;
 
-use common::{assert_fails, ipdf, ipdf_json, s, train_single};
+use common::{
+    assert_fails, command_args, ipdf, ipdf_json, s, synth, synth_args, train_single, viz_args,
+};
 
 /// A copy of `ply` (binary PLY of `ipdf synth`, float xyz, uchar-int faces) with coordinates
 /// multiplied by `factor`, written as ASCII PLY.
@@ -59,24 +61,10 @@ fn pose_file(dir: &Path, rotation: &str, z_mm: u32) -> std::path::PathBuf {
     path
 }
 
-/// [`assert_fails`] for owned arguments.
-fn refuse(args: Vec<String>, expected: &str) {
-    let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    assert_fails(&args, expected);
-}
-
 /// A two-object dataset of 2 frames each, its can's mesh rescaled to metres beside it.
 fn dataset(dir: &Path) -> std::path::PathBuf {
     let data = dir.join("data");
-    ipdf_json(&[
-        "synth",
-        "--out",
-        s(&data),
-        "--objects",
-        "can,box",
-        "--frames",
-        "2",
-    ]);
+    synth(&data, "can,box", 2, &[]);
     rescaled_ply(
         &data.join("models/obj_000001.ply"),
         0.001,
@@ -139,20 +127,18 @@ fn a_mesh_or_cloud_at_the_wrong_scale_is_refused_naming_the_flag_that_fixes_it()
     let pose = pose_file(dir.path(), "[1, 0, 0, 0, 1, 0, 0, 0, 1]", 700);
     let camera = data.join("camera.json");
     let depth = dir.path().join("depth.png");
-    let render = |mesh: &Path, extra: &[&str]| {
-        let mut args = vec!["render", "--mesh", s(mesh), "--camera", s(&camera)];
-        args.extend(["--pose", s(&pose), "--out", s(&depth)]);
-        args.extend_from_slice(extra);
-        args.iter().map(|a| a.to_string()).collect::<Vec<_>>()
-    };
-    refuse(render(&metres, &[]), "--mesh-scale 1 makes it");
-    assert!(!depth.exists());
-    let fixed = ipdf_json(
-        &render(&metres, &["--mesh-scale", "1"])
-            .iter()
-            .map(String::as_str)
-            .collect::<Vec<_>>(),
+    let files: [(&str, &Path); 4] = [
+        ("--mesh", &metres),
+        ("--camera", &camera),
+        ("--pose", &pose),
+        ("--out", &depth),
+    ];
+    assert_fails(
+        &command_args("render", &files, &[]),
+        "--mesh-scale 1 makes it",
     );
+    assert!(!depth.exists());
+    let fixed = ipdf_json(&command_args("render", &files, &["--mesh-scale", "1"]));
     assert!(fixed["pixels"].as_u64().unwrap() > 1000, "{fixed}");
     let out = dir.path().join("synth_m");
     assert_fails(
@@ -187,17 +173,18 @@ fn outputs_named_for_another_format_are_refused_before_anything_is_written() {
     let mesh = data.join("models/obj_000001.ply");
     let pose = pose_file(dir.path(), "[1, 0, 0, 0, 1, 0, 0, 0, 1]", 700);
     let camera = data.join("camera.json");
-    let render = |outputs: &[&str]| {
-        let mut args = vec!["render", "--mesh", s(&mesh), "--camera", s(&camera)];
-        args.extend(["--pose", s(&pose)]);
-        args.extend_from_slice(outputs);
-        args.iter().map(|a| a.to_string()).collect::<Vec<_>>()
-    };
+    let view: [(&str, &Path); 3] = [("--mesh", &mesh), ("--camera", &camera), ("--pose", &pose)];
     let jpg = dir.path().join("depth.jpg");
-    refuse(render(&["--out", s(&jpg)]), "must end in .png");
+    assert_fails(
+        &command_args("render", &view, &["--out", s(&jpg)]),
+        "must end in .png",
+    );
     let png = dir.path().join("depth.png");
     let rgb = dir.path().join("rgb.jpg");
-    refuse(render(&["--out", s(&png), "--rgb", s(&rgb)]), "--rgb");
+    assert_fails(
+        &command_args("render", &view, &["--out", s(&png), "--rgb", s(&rgb)]),
+        "--rgb",
+    );
     let json = dir.path().join("p.json");
     assert_fails(
         &[
@@ -241,12 +228,13 @@ fn render_reports_the_depth_it_writes_and_honours_the_camera_files_depth_scale()
     )
     .unwrap();
     let depth = dir.path().join("depth.png");
-    let args = |extra: &[&'static str]| {
-        let mut words = vec!["render", "--mesh", s(&mesh), "--camera", s(&camera)];
-        words.extend(["--pose", s(&pose), "--out", s(&depth)]);
-        words.extend_from_slice(extra);
-        words
-    };
+    let files: [(&str, &Path); 4] = [
+        ("--mesh", &mesh),
+        ("--camera", &camera),
+        ("--pose", &pose),
+        ("--out", &depth),
+    ];
+    let args = |extra: &[&'static str]| command_args("render", &files, extra);
     let clean = ipdf_json(&args(&[]));
     assert_eq!(clean["depth_scale"], 0.1, "the file's depth_scale");
     // The run's figures are those of the depth file it wrote (units of 0.1 mm).
@@ -295,7 +283,7 @@ fn a_label_rerun_with_other_options_is_refused_and_relabel_replaces_the_labels()
     );
     let same = ipdf_json(&["label", "--dataset", s(&data)]);
     assert_eq!(same["scenes_skipped"], 2);
-    let relabelled = ipdf_json(&[
+    let trials = [
         "label",
         "--dataset",
         s(&data),
@@ -303,22 +291,14 @@ fn a_label_rerun_with_other_options_is_refused_and_relabel_replaces_the_labels()
         "trials",
         "--labels",
         "2",
-        "--relabel",
-    ]);
+    ];
+    let relabelled = ipdf_json(&[&trials[..], &["--relabel"]].concat());
     assert_eq!(
         (&relabelled["instances"], &relabelled["scenes_skipped"]),
         (&4.into(), &0.into())
     );
     // The new options are the recorded ones now.
-    let again = ipdf_json(&[
-        "label",
-        "--dataset",
-        s(&data),
-        "--strategy",
-        "trials",
-        "--labels",
-        "2",
-    ]);
+    let again = ipdf_json(&trials);
     assert_eq!(again["scenes_skipped"], 2);
 }
 
@@ -326,15 +306,7 @@ fn a_label_rerun_with_other_options_is_refused_and_relabel_replaces_the_labels()
 fn synth_renders_again_a_finished_scene_whose_files_were_deleted_or_truncated() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("data");
-    let args = [
-        "synth",
-        "--out",
-        s(&data),
-        "--objects",
-        "can,box",
-        "--frames",
-        "2",
-    ];
+    let args = synth_args(&data, "can,box", "2", &[]);
     ipdf_json(&args);
     let rgb = data.join("train/000000/rgb/000001.png");
     let expected = std::fs::read(&rgb).unwrap();
@@ -397,19 +369,11 @@ fn viz_names_the_scenes_that_hold_the_models_object_and_resume_names_encoders_ri
     // The box (object 2) is in scene 1 only.
     let figure = dir.path().join("box.png");
     assert_fails(
-        &[
-            "viz",
-            "--checkpoint",
-            s(&run),
-            "--split",
-            "train",
-            "--scene",
-            "0",
-            "--image",
-            "0",
-            "--out",
-            s(&figure),
-        ],
+        &viz_args(
+            &run,
+            &figure,
+            &["--split", "train", "--scene", "0", "--image", "0"],
+        ),
         "holds it in scene 1 (e.g. --scene 1 --image 0 --instance 0)",
     );
     assert!(!figure.exists());

@@ -5,15 +5,9 @@ mod common;
 
 use std::path::Path;
 
-use common::{assert_fails, ipdf_json, s};
-use serde_json::Value;
-
-fn read(path: &Path) -> Value {
-    serde_json::from_slice(
-        &std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())),
-    )
-    .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-}
+use common::{
+    assert_fails, ipdf_json, predict_args, read_json, s, strs, synth, train_args, viz_args,
+};
 
 fn png_size(path: &Path) -> (u32, u32) {
     image::image_dimensions(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
@@ -41,7 +35,7 @@ fn a_miniature_pipeline_writes_every_artefact() {
         "4",
     ];
     let result = ipdf_json(&words);
-    let report = read(&out.join("report.json"));
+    let report = read_json(&out.join("report.json"));
     assert_eq!(result["report_json"], s(&out.join("report.json")));
     let markdown = std::fs::read_to_string(out.join("report.md")).unwrap();
     for object in ["can", "box", "bowl"] {
@@ -73,7 +67,7 @@ fn a_miniature_pipeline_writes_every_artefact() {
             let run = out.join("models").join(object).join(labels);
             let log = std::fs::read_to_string(run.join("train_log.csv")).unwrap();
             assert_eq!(log.lines().count(), 3, "{log}");
-            assert_eq!(read(&run.join("run.json"))["object"], object);
+            assert_eq!(read_json(&run.join("run.json"))["object"], object);
             assert!(run.join("checkpoint.json").exists());
             let stem = format!("{object}_{labels}");
             assert_eq!(
@@ -122,10 +116,10 @@ fn a_miniature_pipeline_writes_every_artefact() {
         assert_eq!(report["cpu_kernels"][name], value, "{name}");
     }
     // A rerun skips every stage: nothing is retrained.
-    let checkpoint = read(&out.join("models/can/pseudo/checkpoint.json"));
+    let checkpoint = read_json(&out.join("models/can/pseudo/checkpoint.json"));
     ipdf_json(&words);
     assert_eq!(
-        read(&out.join("models/can/pseudo/checkpoint.json")),
+        read_json(&out.join("models/can/pseudo/checkpoint.json")),
         checkpoint
     );
 
@@ -137,21 +131,15 @@ fn a_miniature_pipeline_writes_every_artefact() {
         scene.join("mask_visib/000000_000000.png"),
     );
     let prediction = dir.path().join("prediction.npy");
-    let predicted = ipdf_json(&[
-        "predict",
-        "--checkpoint",
-        s(&run),
-        "--rgb",
-        s(&rgb),
-        "--mask",
-        s(&mask),
-        "--level",
-        "2",
-        "--out",
-        s(&prediction),
-    ]);
+    let predicted = ipdf_json(&predict_args(
+        &run,
+        &rgb,
+        &mask,
+        &prediction,
+        &["--level", "2"],
+    ));
     assert_eq!(predicted["cells"], 4608);
-    assert_eq!(read(&prediction.with_extension("json"))["level"], 2);
+    assert_eq!(read_json(&prediction.with_extension("json"))["level"], 2);
     let bytes = std::fs::read(&prediction).unwrap();
     assert!(bytes.starts_with(b"\x93NUMPY") && bytes.len() > 4 * 4608);
     let scores = ipdf_json(&["eval", "--checkpoint", s(&run), "--level", "2"]);
@@ -188,77 +176,21 @@ fn a_miniature_pipeline_writes_every_artefact() {
         "7 is not in 0..=6",
     );
     let figure = dir.path().join("viz.png");
-    ipdf_json(&[
-        "viz",
-        "--checkpoint",
-        s(&run),
-        "--scene",
-        "1",
-        "--image",
-        "0",
-        "--out",
-        s(&figure),
-    ]);
+    ipdf_json(&viz_args(&run, &figure, &["--scene", "1", "--image", "0"]));
     assert_eq!(png_size(&figure), (1180, 480));
     ipdf_json(&["viz", "--train-log", s(&run), "--out", s(&figure)]);
     assert_eq!(png_size(&figure), (1200, 480));
 
     // Bad inputs: one line each.
     let data = out.join("data/uniform");
+    let x = dir.path().join("x");
+    assert_fails(&train_args(&data, "pseudo", &["--out", s(&x)]), "obj_id");
+    assert_fails(&train_args(&data, "guess", &["--out", s(&x)]), "guess");
+    let vgg = ["--object", "can", "--encoder", "vgg", "--out", s(&x)];
+    assert_fails(&train_args(&data, "single", &vgg), "vgg");
+    let val = ["--object", "can", "--split", "val", "--out", s(&x)];
     assert_fails(
-        &[
-            "train",
-            "--dataset",
-            s(&data),
-            "--labels",
-            "pseudo",
-            "--out",
-            s(&dir.path().join("x")),
-        ],
-        "obj_id",
-    );
-    assert_fails(
-        &[
-            "train",
-            "--dataset",
-            s(&data),
-            "--labels",
-            "guess",
-            "--out",
-            s(&dir.path().join("x")),
-        ],
-        "guess",
-    );
-    assert_fails(
-        &[
-            "train",
-            "--dataset",
-            s(&data),
-            "--labels",
-            "single",
-            "--object",
-            "can",
-            "--encoder",
-            "vgg",
-            "--out",
-            s(&dir.path().join("x")),
-        ],
-        "vgg",
-    );
-    assert_fails(
-        &[
-            "train",
-            "--dataset",
-            s(&out.join("data/texture")),
-            "--labels",
-            "pseudo",
-            "--object",
-            "can",
-            "--split",
-            "val",
-            "--out",
-            s(&dir.path().join("x")),
-        ],
+        &train_args(&out.join("data/texture"), "pseudo", &val),
         "val",
     );
     assert_fails(&["eval", "--checkpoint", s(dir.path())], "run.json");
@@ -266,51 +198,28 @@ fn a_miniature_pipeline_writes_every_artefact() {
         &["eval", "--checkpoint", s(&run), "--models-dir", "no_models"],
         "no_models",
     );
+    let none = dir.path().join("none.png");
     assert_fails(
-        &[
-            "predict",
-            "--checkpoint",
-            s(&run),
-            "--rgb",
-            s(&rgb),
-            "--mask",
-            s(&dir.path().join("none.png")),
-            "--out",
-            s(&prediction),
-        ],
+        &predict_args(&run, &rgb, &none, &prediction, &[]),
         "none.png",
     );
     assert_fails(&["viz", "--out", s(&figure)], "--train-log");
     assert_fails(
-        &[
-            "pipeline",
-            "--out",
-            s(&dir.path().join("x")),
-            "--translation-epochs",
-            "0",
-        ],
+        &["pipeline", "--out", s(&x), "--translation-epochs", "0"],
         "--translation-epochs",
     );
     // Scene 0 shows the can: the box's model is not drawn on it.
     assert_fails(
-        &[
-            "viz",
-            "--checkpoint",
-            s(&run),
-            "--scene",
-            "0",
-            "--image",
-            "0",
-            "--out",
-            s(&figure),
-        ],
+        &viz_args(&run, &figure, &["--scene", "0", "--image", "0"]),
         "the model is for object 2",
     );
     let train = |flag: &str, value: &str| {
         let out = dir.path().join("refused");
-        let mut args = vec!["train", "--dataset", s(&data), "--labels", "single"];
-        args.extend(["--object", "box", "--out", s(&out), flag, value]);
-        args.iter().map(|a| a.to_string()).collect::<Vec<_>>()
+        let args = ["--object", "box", "--out", s(&out), flag, value];
+        train_args(&data, "single", &args)
+            .iter()
+            .map(|a| a.to_string())
+            .collect::<Vec<_>>()
     };
     for (flag, value, expected) in [
         ("--input-size", "0", "input_size"),
@@ -322,53 +231,30 @@ fn a_miniature_pipeline_writes_every_artefact() {
         if flag == "--translation-learning-rate" {
             args.extend(["--target", "translation"].map(String::from));
         }
-        let args: Vec<&str> = args.iter().map(String::as_str).collect();
-        assert_fails(&args, expected);
+        assert_fails(&strs(&args), expected);
         // Refused before the run folder is written to.
         assert!(!dir.path().join("refused").exists(), "{flag} {value}");
     }
     // Another run's folder is not silently continued with other data.
-    assert_fails(
-        &[
-            "train",
-            "--dataset",
-            s(&data),
-            "--labels",
-            "single",
-            "--object",
-            "box",
-            "--out",
-            s(&run),
-            "--encoder",
-            "small-cnn",
-        ],
-        "other data",
-    );
+    let small_cnn = [
+        "--object",
+        "box",
+        "--out",
+        s(&run),
+        "--encoder",
+        "small-cnn",
+    ];
+    assert_fails(&train_args(&data, "single", &small_cnn), "other data");
 }
 
 #[test]
 fn pseudo_training_without_labels_says_how_to_make_them() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("data");
-    ipdf_json(&[
-        "synth",
-        "--out",
-        s(&data),
-        "--objects",
-        "box",
-        "--frames",
-        "2",
-    ]);
+    synth(&data, "box", 2, &[]);
+    let run = dir.path().join("run");
     assert_fails(
-        &[
-            "train",
-            "--dataset",
-            s(&data),
-            "--labels",
-            "pseudo",
-            "--out",
-            s(&dir.path().join("run")),
-        ],
+        &train_args(&data, "pseudo", &["--out", s(&run)]),
         "ipdf label --dataset",
     );
 }

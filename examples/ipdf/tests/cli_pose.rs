@@ -5,15 +5,10 @@ mod common;
 
 use std::path::Path;
 
-use common::{assert_fails, ipdf_json, s, train_single};
+use common::{
+    BRIEF_TRAINING, assert_fails, ipdf_json, predict_args, read_json, s, synth, train_single,
+};
 use serde_json::Value;
-
-fn read(path: &Path) -> Value {
-    serde_json::from_slice(
-        &std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())),
-    )
-    .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-}
 
 /// The float32 rows of a 2-D `.npy` file and its shape.
 fn read_npy(path: &Path) -> (Vec<u64>, Vec<f32>) {
@@ -21,11 +16,6 @@ fn read_npy(path: &Path) -> (Vec<u64>, Vec<f32>) {
     let npy = npyz::NpyFile::new(&bytes[..]).unwrap();
     let shape = npy.shape().to_vec();
     (shape, npy.into_vec::<f32>().unwrap())
-}
-
-/// Owned arguments as the `&str`s the helpers take.
-fn strs(words: &[String]) -> Vec<&str> {
-    words.iter().map(String::as_str).collect()
 }
 
 fn finite(value: &Value) -> f64 {
@@ -38,20 +28,13 @@ fn finite(value: &Value) -> f64 {
 fn pose_runs_train_score_and_predict_translations() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("data");
-    for (split, frames, seed) in [("train", "12", "0"), ("val", "3", "1")] {
-        ipdf_json(&[
-            "synth",
-            "--out",
-            s(&data),
-            "--objects",
+    for (split, frames, seed) in [("train", 12, "0"), ("val", 3, "1")] {
+        synth(
+            &data,
             "box,can",
-            "--frames",
             frames,
-            "--split",
-            split,
-            "--seed",
-            seed,
-        ]);
+            &["--split", split, "--seed", seed],
+        );
     }
     let run = dir.path().join("run");
     // The box's single labels: every training command below starts so.
@@ -69,16 +52,8 @@ fn pose_runs_train_score_and_predict_translations() {
         let mut words = box_run.to_vec();
         words.extend(["--target", target, "--out", s(out)]);
         words.extend(network);
-        words.extend([
-            "--epochs",
-            "2",
-            "--steps-per-epoch",
-            "3",
-            "--batch-size",
-            "4",
-            "--translation-queries",
-            "64",
-        ]);
+        words.extend(BRIEF_TRAINING);
+        words.extend(["--translation-queries", "64"]);
         ipdf_json(&words)
     };
     let trained = train("pose", &run);
@@ -87,13 +62,13 @@ fn pose_runs_train_score_and_predict_translations() {
     assert!(finite(&trained["translation"]["validation_llh"]) < 0.0);
     // Rotation runs keep their run.json as before; the translation model has its own folder,
     // whose checkpoint records the working volume.
-    assert!(read(&run.join("run.json")).get("target").is_none());
+    assert!(read_json(&run.join("run.json")).get("target").is_none());
     let translation_run = run.join("translation");
     assert_eq!(
-        read(&translation_run.join("run.json"))["target"],
+        read_json(&translation_run.join("run.json"))["target"],
         "translation"
     );
-    let volume = &read(&translation_run.join("checkpoint.json"))["translation"]["volume"];
+    let volume = &read_json(&translation_run.join("checkpoint.json"))["translation"]["volume"];
     for axis in 0..3 {
         assert!(
             finite(&volume["min"][axis]) < finite(&volume["max"][axis]),
@@ -153,30 +128,13 @@ fn pose_runs_train_score_and_predict_translations() {
         scene.join("rgb/000000.png"),
         scene.join("mask_visib/000000_000000.png"),
     );
-    let k = &read(&scene.join("scene_camera.json"))["0"]["cam_K"];
+    let k = &read_json(&scene.join("scene_camera.json"))["0"]["cam_K"];
     let intrinsics = format!("{},{},{},{}", k[0], k[4], k[2], k[5]);
     let out = dir.path().join("pose.npy");
-    // `ipdf predict` of `run` on the first validation image, then `extra`.
-    let predict_args = |run: &Path, extra: &[&str]| {
-        let mut w = vec![
-            "predict",
-            "--checkpoint",
-            s(run),
-            "--rgb",
-            s(&rgb),
-            "--mask",
-            s(&mask),
-            "--out",
-            s(&out),
-        ];
-        w.extend(extra);
-        w.iter().map(|a| a.to_string()).collect::<Vec<_>>()
-    };
+    // `ipdf predict` of `run` on the first validation image.
     let predict = |run: &Path, intrinsics: &str| {
-        ipdf_json(&strs(&predict_args(
-            run,
-            &["--level", "1", "--intrinsics", intrinsics],
-        )))
+        let extra = ["--level", "1", "--intrinsics", intrinsics];
+        ipdf_json(&predict_args(run, &rgb, &mask, &out, &extra))
     };
     let predicted = predict(&run, &intrinsics);
     assert_eq!(predicted["cells"], 576);
@@ -194,7 +152,7 @@ fn pose_runs_train_score_and_predict_translations() {
     );
     let total: f64 = rows.chunks(5).map(|row| f64::from(row[4])).sum();
     assert!((total - 1.0).abs() < 1e-3, "masses sum to {total}");
-    assert_eq!(read(&out.with_extension("json")), predicted);
+    assert_eq!(read_json(&out.with_extension("json")), predicted);
     let only = predict(&translation_run, &intrinsics);
     assert_eq!(only["argmax"]["cam_t_m2c"], *t);
     assert!(only.get("level").is_none());
@@ -202,15 +160,18 @@ fn pose_runs_train_score_and_predict_translations() {
     // Bad inputs: one line each, nothing half-written.
     // A pose run without intrinsics predicts the orientation only; a translation run needs
     // them.
-    let orientation = ipdf_json(&strs(&predict_args(&run, &["--level", "1"])));
+    let orientation = ipdf_json(&predict_args(&run, &rgb, &mask, &out, &["--level", "1"]));
     assert!(orientation.get("translation").is_none(), "{orientation}");
     assert!(orientation["argmax"].get("cam_t_m2c").is_none());
-    assert_fails(&strs(&predict_args(&translation_run, &[])), "--intrinsics");
+    assert_fails(
+        &predict_args(&translation_run, &rgb, &mask, &out, &[]),
+        "--intrinsics",
+    );
     for (extra, expected) in [
         (vec!["--intrinsics", "600,600,320"], "intrinsics"),
         (vec!["--intrinsics", "600,600,5000,240"], "outside"),
     ] {
-        assert_fails(&strs(&predict_args(&run, &extra)), expected);
+        assert_fails(&predict_args(&run, &rgb, &mask, &out, &extra), expected);
     }
     let fail_train = |extra: &[&str], expected: &str| {
         let mut w = box_run.to_vec();

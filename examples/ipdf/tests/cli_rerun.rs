@@ -3,15 +3,14 @@
 //! plus the global flags' and `grid`'s argument checks.
 mod common;
 
-use common::{assert_fails, ipdf, ipdf_json, s};
+use common::{assert_fails, ipdf, ipdf_json, read_json, s, synth, synth_args};
 
 #[test]
 fn a_synth_rerun_with_other_options_is_refused_and_an_identical_one_resumes() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("data");
     let args = |frames: &'static str, extra: &[&'static str]| {
-        let mut words = vec!["synth", "--out", s(&data), "--objects", "can,box"];
-        words.extend(["--frames", frames]);
+        let mut words = synth_args(&data, "can,box", frames, &[]);
         if !extra.contains(&"--frames-per-scene") {
             words.extend(["--frames-per-scene", "2"]);
         }
@@ -59,19 +58,7 @@ fn a_synth_rerun_with_other_options_is_refused_and_an_identical_one_resumes() {
     let scenes = std::fs::read_dir(data.join("train")).unwrap().count();
     assert_eq!(scenes, 3, "two scenes and synth_options.json");
     // Another split is another set of options.
-    let val = ipdf_json(&[
-        "synth",
-        "--out",
-        s(&data),
-        "--objects",
-        "can,box",
-        "--frames",
-        "1",
-        "--split",
-        "val",
-        "--seed",
-        "1",
-    ]);
+    let val = synth(&data, "can,box", 1, &["--split", "val", "--seed", "1"]);
     assert_eq!(val["rendered"], 2);
 }
 
@@ -80,20 +67,7 @@ fn synth_refuses_a_split_that_is_not_a_plain_folder_name() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("a/b");
     for split in ["../../escape", "/abs", "a/b", "..", ".", ""] {
-        assert_fails(
-            &[
-                "synth",
-                "--out",
-                s(&data),
-                "--objects",
-                "box",
-                "--frames",
-                "1",
-                "--split",
-                split,
-            ],
-            "split",
-        );
+        assert_fails(&synth_args(&data, "box", "1", &["--split", split]), "split");
     }
     assert!(!dir.path().join("escape").exists());
     assert!(!data.exists(), "nothing written");
@@ -127,8 +101,7 @@ fn a_pipeline_rerun_with_other_settings_is_refused() {
     std::fs::write(out.join("data"), "in the way").unwrap();
     let started = ipdf(&settings("2"));
     assert!(!started.status.success());
-    let config: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("pipeline_config.json")).unwrap()).unwrap();
+    let config = read_json(&out.join("pipeline_config.json"));
     assert_eq!(config["frames_per_object"], 2);
     assert_eq!(config["epochs"], 1);
     // The quick preset's depth is a Kinect's.
@@ -147,9 +120,7 @@ fn a_pipeline_rerun_with_other_settings_is_refused() {
     realsense[2] = s(&other);
     realsense.extend(["--sensor", "realsense"]);
     assert!(!ipdf(&realsense).status.success());
-    let config: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(other.join("pipeline_config.json")).unwrap())
-            .unwrap();
+    let config = read_json(&other.join("pipeline_config.json"));
     assert_eq!(config["sensor"], "realsense");
     let mut seeded = settings("2");
     seeded.extend(["--seed", "3"]);

@@ -4,6 +4,19 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
+use serde_json::Value;
+
+/// The training flags of a barely trained run (two epochs of three steps of four crops): the
+/// tests that check files, shapes and ranges, not accuracy.
+pub const BRIEF_TRAINING: [&str; 6] = [
+    "--epochs",
+    "2",
+    "--steps-per-epoch",
+    "3",
+    "--batch-size",
+    "4",
+];
+
 /// Runs `ipdf` with `args`.
 pub fn ipdf(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_ipdf"))
@@ -13,7 +26,7 @@ pub fn ipdf(args: &[&str]) -> Output {
 }
 
 /// Runs `ipdf … --json`, asserts success and parses its JSON line.
-pub fn ipdf_json(args: &[&str]) -> serde_json::Value {
+pub fn ipdf_json(args: &[&str]) -> Value {
     let mut args = args.to_vec();
     args.push("--json");
     let out = ipdf(&args);
@@ -34,6 +47,72 @@ pub fn assert_fails(args: &[&str], expected: &str) {
     assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
 }
 
+/// The words of `ipdf synth` of `objects` (comma-separated) into `out`, `frames` frames of
+/// each, then `extra`.
+pub fn synth_args<'a>(
+    out: &'a Path,
+    objects: &'a str,
+    frames: &'a str,
+    extra: &[&'a str],
+) -> Vec<&'a str> {
+    let mut args = vec![
+        "synth",
+        "--out",
+        s(out),
+        "--objects",
+        objects,
+        "--frames",
+        frames,
+    ];
+    args.extend_from_slice(extra);
+    args
+}
+
+/// `ipdf synth` of `objects` into `out` with `extra` flags (see [`synth_args`]): its JSON line.
+pub fn synth(out: &Path, objects: &str, frames: usize, extra: &[&str]) -> Value {
+    let frames = frames.to_string();
+    ipdf_json(&synth_args(out, objects, &frames, extra))
+}
+
+/// The words of `ipdf train` on the dataset at `data` with `labels` labels, then `extra`.
+pub fn train_args<'a>(data: &'a Path, labels: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
+    let mut args = vec!["train", "--dataset", s(data), "--labels", labels];
+    args.extend_from_slice(extra);
+    args
+}
+
+/// The words of `ipdf command`: each flag of `files` followed by its file, then `extra`.
+pub fn command_args<'a>(
+    command: &'a str,
+    files: &[(&'a str, &'a Path)],
+    extra: &[&'a str],
+) -> Vec<&'a str> {
+    let mut args = vec![command];
+    for &(flag, path) in files {
+        args.extend([flag, s(path)]);
+    }
+    args.extend_from_slice(extra);
+    args
+}
+
+/// The words of `ipdf predict` of the model at `run` on the object in `mask` of the image
+/// `rgb`, into `out`, then `extra`.
+pub fn predict_args<'a>(
+    run: &'a Path,
+    rgb: &'a Path,
+    mask: &'a Path,
+    out: &'a Path,
+    extra: &[&'a str],
+) -> Vec<&'a str> {
+    let files = [("--checkpoint", run), ("--rgb", rgb), ("--mask", mask)];
+    command_args("predict", &[&files[..], &[("--out", out)]].concat(), extra)
+}
+
+/// The words of `ipdf viz` of the model at `run` into `out`, then `extra` (the scene and image).
+pub fn viz_args<'a>(run: &'a Path, out: &'a Path, extra: &[&'a str]) -> Vec<&'a str> {
+    command_args("viz", &[("--checkpoint", run), ("--out", out)], extra)
+}
+
 /// The start of `ipdf train` on `object`'s single labels of the dataset at `data`.
 pub fn train_single<'a>(data: &'a Path, object: &'a str) -> Vec<&'a str> {
     let data = s(data);
@@ -46,6 +125,19 @@ pub fn train_single<'a>(data: &'a Path, object: &'a str) -> Vec<&'a str> {
         "--labels",
         "single",
     ]
+}
+
+/// The JSON file at `path`, naming it when it cannot be read or parsed.
+pub fn read_json(path: &Path) -> Value {
+    serde_json::from_slice(
+        &std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())),
+    )
+    .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// Owned arguments as the `&str`s the helpers take.
+pub fn strs(words: &[String]) -> Vec<&str> {
+    words.iter().map(String::as_str).collect()
 }
 
 /// `path` as a `&str`.
