@@ -1,12 +1,14 @@
 //! Checkpoints, resuming, pretrained backbones and bad input, through the public API.
+mod common;
+
 use std::path::Path;
 
 use ipdf_model::rotation::{ImplicitPdf, LabelledImages, QuerySampling, TrainOptions, Trainer};
 use ipdf_model::{
     Augmentation, CHECKPOINT_FILE, CheckpointInfo, EncoderKind, FitOptions, ModelConfig,
-    ModelError, TRAIN_LOG, fit, load_backbone,
+    ModelError, TRAIN_LOG, load_backbone,
 };
-use nalgebra::UnitQuaternion;
+use nalgebra::{Quaternion, UnitQuaternion};
 use tch::{Device, Kind, Tensor};
 
 const SIZE: i64 = 16;
@@ -54,46 +56,20 @@ fn a_resumed_run_ends_where_an_uninterrupted_one_does() {
     let split = tempfile::tempdir().unwrap();
     let fresh =
         || Trainer::new(ImplicitPdf::new(config(), Device::Cpu).unwrap(), options()).unwrap();
-
-    let mut trainer = fresh();
-    let reports = fit(
-        &mut trainer,
+    let (trainer, reports, resumed) = common::uninterrupted_and_resumed(
+        fresh,
+        |dir| Trainer::resume(dir, Device::Cpu),
         &data,
-        Some(&data),
-        &fit_options(2),
-        whole.path(),
-        |_| {},
-    )
-    .unwrap();
+        fit_options,
+        3,
+        (whole.path(), split.path()),
+    );
     assert_eq!(reports.len(), 2);
     assert!(
         reports
             .iter()
             .all(|r| r.validation_llh.is_some_and(f64::is_finite))
     );
-
-    let mut first = fresh();
-    fit(
-        &mut first,
-        &data,
-        None,
-        &fit_options(1),
-        split.path(),
-        |_| {},
-    )
-    .unwrap();
-    drop(first);
-    let mut resumed = Trainer::resume(split.path(), Device::Cpu).unwrap();
-    assert_eq!(resumed.step(), 3);
-    fit(
-        &mut resumed,
-        &data,
-        None,
-        &fit_options(2),
-        split.path(),
-        |_| {},
-    )
-    .unwrap();
 
     assert_eq!(resumed.step(), trainer.step());
     assert!(head_weight(resumed.model()).equal(&head_weight(trainer.model())));
@@ -296,6 +272,15 @@ fn bad_images_and_labels_are_typed_errors() {
     assert!(
         matches!(err, ModelError::LabelSet { image: 1, .. }),
         "{err}"
+    );
+    assert_eq!(err.to_string(), "label set 1: empty label set");
+    let stretched = UnitQuaternion::new_unchecked(Quaternion::new(2.0, 0.0, 0.0, 0.0));
+    let err = trainer
+        .train_step(&images, &[vec![one[0], stretched], one.clone()])
+        .unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "label set 0: label 1 is not a unit quaternion"
     );
     let err = trainer.train_step(&images, &[one]).unwrap_err();
     assert!(matches!(err, ModelError::LabelSet { .. }), "{err}");

@@ -3,14 +3,14 @@
 //! rendering pose, it does not.
 mod common;
 
+use ipdf_metrics::{
+    Distribution, GridCell, RECALL_THRESHOLD, llh, maad, nearest_distances, recall_maad,
+};
 use ipdf_model::rotation::{
     ArgmaxOptions, ImplicitPdf, LabelLoss, LabelledImages, Precision, Predictor, QuerySampling,
     TrainOptions, Trainer, UNDER_RESOLUTION_LIMIT,
 };
 use ipdf_model::{Augmentation, LearningRateSchedule, ModelConfig, RefineOptions};
-use ipdf_metrics::{
-    Distribution, GridCell, RECALL_THRESHOLD, llh, maad, nearest_distances, recall_maad,
-};
 use nalgebra::UnitQuaternion;
 use so3_grid::Grid;
 use tch::Device;

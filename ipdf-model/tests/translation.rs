@@ -13,7 +13,7 @@ use ipdf_model::translation::{
 };
 use ipdf_model::{
     CHECKPOINT_FILE, CellHierarchy, CheckpointInfo, CropOptions, FitOptions, ModelError,
-    RefineOptions, crop_box, crop_object, crops_to_tensor, fit, refine_on,
+    RefineOptions, crop_box, crop_object, crops_to_tensor, refine_on,
 };
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use proptest::prelude::*;
@@ -359,10 +359,14 @@ fn bad_translation_input_gets_typed_errors() {
         "{err}"
     );
     let nan = vec![vec![Vector3::new(f64::NAN, 0.0, 500.0)], labels[1].clone()];
-    assert!(matches!(
-        loss(&data.geometry, &nan),
-        Err(ModelError::LabelSet { image: 0, .. })
-    ));
+    let err = loss(&data.geometry, &nan);
+    assert!(matches!(err, Err(ModelError::LabelSet { image: 0, .. })));
+    assert_eq!(
+        err.unwrap_err().to_string(),
+        "label set 0: translation 0 [NaN, 0.0, 500.0] mm is not finite or not in front of the camera"
+    );
+    let err = loss(&data.geometry, &empty).unwrap_err();
+    assert_eq!(err.to_string(), "label set 1: empty label set");
     let mut outside = data.geometry.clone();
     outside[1].crop.centre_x = IMAGE as f64 + 40.0;
     assert!(matches!(
@@ -438,43 +442,19 @@ fn translation_runs_checkpoint_resume_and_load_only_as_translation_models() {
         validation_level: 0,
     };
     let (whole, split) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
-    let mut trainer = fresh();
-    let reports = fit(
-        &mut trainer,
+    let (trainer, reports, resumed) = common::uninterrupted_and_resumed(
+        fresh,
+        |dir| TranslationTrainer::resume(dir, Device::Cpu),
         &examples,
-        Some(&examples),
-        &fit_options(2),
-        whole.path(),
-        |_| {},
-    )
-    .unwrap();
+        fit_options,
+        2,
+        (whole.path(), split.path()),
+    );
     assert!(
         reports
             .iter()
             .all(|r| r.validation_llh.is_some_and(f64::is_finite))
     );
-    let mut first = fresh();
-    fit(
-        &mut first,
-        &examples,
-        None,
-        &fit_options(1),
-        split.path(),
-        |_| {},
-    )
-    .unwrap();
-    drop(first);
-    let mut resumed = TranslationTrainer::resume(split.path(), Device::Cpu).unwrap();
-    assert_eq!(resumed.step(), 2);
-    fit(
-        &mut resumed,
-        &examples,
-        None,
-        &fit_options(2),
-        split.path(),
-        |_| {},
-    )
-    .unwrap();
     let weight =
         |model: &TranslationPdf| model.var_store().variables()["head.output.weight"].copy();
     assert!(weight(resumed.model()).equal(&weight(trainer.model())));

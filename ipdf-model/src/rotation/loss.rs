@@ -165,23 +165,40 @@ pub(crate) fn check_label_sets(
         });
     }
     for (image, set) in label_sets.iter().enumerate() {
+        ModelError::check_label_set(
+            image,
+            set,
+            |q| !q.coords.iter().all(|v| v.is_finite()) || (q.norm() - 1.0).abs() > 1e-6,
+            |i, _| format!("label {i} is not a unit quaternion"),
+        )?;
+    }
+    Ok(())
+}
+
+impl ModelError {
+    /// Checks the label set of image `image`, of rotations or translations (the translation
+    /// model's checks reach it as the error's function): a [`ModelError::LabelSet`] for an empty
+    /// set, or for the first label that is `bad`, with `reason` of its index and value.
+    pub(crate) fn check_label_set<T>(
+        image: usize,
+        set: &[T],
+        bad: impl Fn(&T) -> bool,
+        reason: impl Fn(usize, &T) -> String,
+    ) -> Result<(), Self> {
         if set.is_empty() {
-            return Err(ModelError::LabelSet {
+            return Err(Self::LabelSet {
                 image,
                 reason: "empty label set".into(),
             });
         }
-        if let Some(i) = set
-            .iter()
-            .position(|q| !q.coords.iter().all(|v| v.is_finite()) || (q.norm() - 1.0).abs() > 1e-6)
-        {
-            return Err(ModelError::LabelSet {
+        match set.iter().position(bad) {
+            Some(i) => Err(Self::LabelSet {
                 image,
-                reason: format!("label {i} is not a unit quaternion"),
-            });
+                reason: reason(i, &set[i]),
+            }),
+            None => Ok(()),
         }
     }
-    Ok(())
 }
 
 /// Labels padded to the largest set: `[B, K, 9]` rotations and their `[B, K]` validity mask.

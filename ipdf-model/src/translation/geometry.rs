@@ -114,23 +114,16 @@ pub(crate) fn crop_factors(
     device: Device,
     kind: Kind,
 ) -> Tensor {
-    let values: Vec<f64> = geometry
-        .iter()
-        .flat_map(|g| {
-            let (k, c) = (&g.intrinsics, &g.crop);
-            [
-                2.0 * k.fx / c.side,
-                2.0 * (k.cx + 0.5 - c.centre_x) / c.side,
-                2.0 * k.fy / c.side,
-                2.0 * (k.cy + 0.5 - c.centre_y) / c.side,
-                (c.side / (g.focal() * extent)).ln(),
-            ]
-        })
-        .collect();
-    Tensor::from_slice(&values)
-        .reshape([geometry.len() as i64, FACTORS])
-        .to_device(device)
-        .to_kind(kind)
+    per_crop::<{ FACTORS as usize }>(geometry, device, kind, |g| {
+        let (k, c) = (&g.intrinsics, &g.crop);
+        [
+            2.0 * k.fx / c.side,
+            2.0 * (k.cx + 0.5 - c.centre_x) / c.side,
+            2.0 * k.fy / c.side,
+            2.0 * (k.cy + 0.5 - c.centre_y) / c.side,
+            (c.side / (g.focal() * extent)).ln(),
+        ]
+    })
 }
 
 /// What the image term learns about where the crop came from, `[B, 3]`: the direction of the
@@ -144,19 +137,26 @@ pub(crate) fn crop_features(
     device: Device,
     kind: Kind,
 ) -> Tensor {
-    let values: Vec<f64> = geometry
-        .iter()
-        .flat_map(|g| {
-            let (k, c) = (&g.intrinsics, &g.crop);
-            [
-                (c.centre_x - 0.5 - k.cx) / k.fx,
-                (c.centre_y - 0.5 - k.cy) / k.fy,
-                (reference_depth * c.side / (g.focal() * extent)).ln(),
-            ]
-        })
-        .collect();
+    per_crop::<{ FEATURES as usize }>(geometry, device, kind, |g| {
+        let (k, c) = (&g.intrinsics, &g.crop);
+        [
+            (c.centre_x - 0.5 - k.cx) / k.fx,
+            (c.centre_y - 0.5 - k.cy) / k.fy,
+            (reference_depth * c.side / (g.focal() * extent)).ln(),
+        ]
+    })
+}
+
+/// `[B, N]` on `device` as `kind`: row `b` is `row` of crop `b`.
+fn per_crop<const N: usize>(
+    geometry: &[CropGeometry],
+    device: Device,
+    kind: Kind,
+    row: impl Fn(&CropGeometry) -> [f64; N],
+) -> Tensor {
+    let values: Vec<f64> = geometry.iter().flat_map(row).collect();
     Tensor::from_slice(&values)
-        .reshape([geometry.len() as i64, FEATURES])
+        .reshape([geometry.len() as i64, N as i64])
         .to_device(device)
         .to_kind(kind)
 }

@@ -121,24 +121,17 @@ pub(crate) fn check_translation_sets(
     }
     for (image, (set, g)) in label_sets.iter().zip(geometry).enumerate() {
         g.validate(image)?;
-        if set.is_empty() {
-            return Err(ModelError::LabelSet {
-                image,
-                reason: "empty label set".into(),
-            });
-        }
-        if let Some(i) = set
-            .iter()
-            .position(|t| !t.iter().all(|v| v.is_finite()) || t.z <= 0.0)
-        {
-            return Err(ModelError::LabelSet {
-                image,
-                reason: format!(
+        ModelError::check_label_set(
+            image,
+            set,
+            |t| !t.iter().all(|v| v.is_finite()) || t.z <= 0.0,
+            |i, t| {
+                format!(
                     "translation {i} {:?} mm is not finite or not in front of the camera",
-                    set[i].as_slice()
-                ),
-            });
-        }
+                    t.as_slice()
+                )
+            },
+        )?;
     }
     Ok(())
 }

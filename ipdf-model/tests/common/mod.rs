@@ -1,10 +1,15 @@
 //! Tiny synthetic renders for the model tests: a flat-coloured cube under Lambert shading,
-//! whose images are identical under its 24 proper symmetries.
+//! whose images are identical under its 24 proper symmetries; and a run trained through and the
+//! same run interrupted and resumed, for the checkpoint tests of either model.
 #![allow(dead_code)]
 
+use std::path::Path;
+
 use depth_render::{Instance, Lighting, Material, PinholeCamera, Primitive, Scene, Window};
-use ipdf_model::{CropOptions, crop_object, crops_to_tensor};
 use ipdf_metrics::SymmetryGroup;
+use ipdf_model::{
+    CropOptions, EpochReport, FitOptions, FitTarget, ModelError, crop_object, crops_to_tensor, fit,
+};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -77,4 +82,35 @@ pub fn cube_renders(count: usize, seed: u64, size: usize) -> CubeRenders {
             ipdf_metrics::SymmetryGroup::about_origin(&shape.discrete, &shape.continuous)
         },
     }
+}
+
+/// A run of two epochs on `data` (validated on it) into `whole`, and the same run interrupted:
+/// one epoch into `split`, dropped, resumed from there (`resume`) after `first_steps` steps and
+/// trained to the end of the second epoch. `fresh` starts a trainer, `fit_options` has the
+/// epochs given. Returns the uninterrupted trainer, its epochs' reports, and the resumed one.
+pub fn uninterrupted_and_resumed<T: FitTarget>(
+    fresh: impl Fn() -> T,
+    resume: impl Fn(&Path) -> Result<T, ModelError>,
+    data: &T::Data,
+    fit_options: impl Fn(u64) -> FitOptions,
+    first_steps: u64,
+    (whole, split): (&Path, &Path),
+) -> (T, Vec<EpochReport>, T) {
+    let mut trainer = fresh();
+    let reports = fit(
+        &mut trainer,
+        data,
+        Some(data),
+        &fit_options(2),
+        whole,
+        |_| {},
+    )
+    .unwrap();
+    let mut first = fresh();
+    fit(&mut first, data, None, &fit_options(1), split, |_| {}).unwrap();
+    drop(first);
+    let mut resumed = resume(split).unwrap();
+    assert_eq!(resumed.steps_done(), first_steps);
+    fit(&mut resumed, data, None, &fit_options(2), split, |_| {}).unwrap();
+    (trainer, reports, resumed)
 }
