@@ -14,9 +14,9 @@ use anyhow::Result;
 use ipdf::eval::rotation::cell_distribution;
 use ipdf::run_info::{RUN_FILE, RunInfo};
 use ipdf::training_data::{ExampleOptions, load_examples, to_unit_floats};
+use ipdf_metrics::maad;
 use ipdf_model::RefineOptions;
 use ipdf_model::rotation::{ImplicitPdf, Predictor};
-use ipdf_metrics::maad;
 
 fn main() -> Result<()> {
     let mut args = std::env::args().skip(1);

@@ -4,9 +4,9 @@
 //! nearest ground-truth rotation) and Recall MAAD (mean distance of each ground-truth rotation
 //! to the nearest predicted one), averaged over crops.
 use indicatif::ProgressBar;
+use ipdf_metrics::{Distribution, GridCell, RECALL_THRESHOLD, maad, recall_maad};
 use ipdf_model::rotation::{ArgmaxOptions, ImplicitPdf, Predictor};
 use ipdf_model::{CellMasses, RefineOptions};
-use ipdf_metrics::{Distribution, GridCell, RECALL_THRESHOLD, maad, recall_maad};
 use nalgebra::UnitQuaternion;
 use so3_grid::Grid;
 

@@ -5,13 +5,13 @@
 use std::path::{Path, PathBuf};
 
 use indicatif::ProgressBar;
+use ipdf_metrics::{ModelPoints, add_s, auc, translation_error};
 use ipdf_model::rotation::ImplicitPdf;
 use ipdf_model::translation::{
     CropGeometry, CropTerms, TranslationArgmax, TranslationArgmaxOptions, TranslationPdf,
     TranslationPredictor,
 };
 use ipdf_model::{CellMasses, default_device};
-use ipdf_metrics::{ModelPoints, add_s, auc, translation_error};
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 use tch::Tensor;
