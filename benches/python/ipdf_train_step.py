@@ -11,7 +11,7 @@ Mirrors `ipdf_model::Trainer::train_step` with `TrainOptions::default()` minus a
 - loss −(F(label) − logsumexp F(queries) + ln(N/π²)); Adam (lr 1e-4), gradient norm clipped to 5.
 
 Prints seconds per step and images/s per encoder, on the torch the venv holds (2.11.0, the
-same libtorch the Rust crate links). Run: `make bench-python`.
+same libtorch the Rust crate links), on the CPU or `--device cuda`. Run: `make bench-python`.
 """
 import argparse
 import json
@@ -87,17 +87,17 @@ def random_rotations(n, generator):
     ).view(n, 3, 3)
 
 
-def run(encoder, batch, size, queries, steps, warmup):
+def run(encoder, batch, size, queries, steps, warmup, device="cpu"):
     generator = torch.Generator().manual_seed(0)
-    model = ImplicitPdf(encoder)
+    model = ImplicitPdf(encoder).to(device)
     optimiser = torch.optim.Adam(model.parameters(), lr=1e-4)
-    images = torch.rand(batch, 3, size, size, generator=generator)
-    labels = random_rotations(batch, generator)
-    grid = random_rotations(queries, generator)
+    images = torch.rand(batch, 3, size, size, generator=generator).to(device)
+    labels = random_rotations(batch, generator).to(device)
+    grid = random_rotations(queries, generator).to(device)
     log_volume = math.log(queries / math.pi**2)
 
     def step():
-        turned = random_rotations(1, generator)[0] @ grid
+        turned = random_rotations(1, generator)[0].to(device) @ grid
         shift = turned[0].T @ labels
         rotations = (turned.unsqueeze(0) @ shift.unsqueeze(1)).reshape(batch, queries, 9)
         scores = model(images, rotations)
@@ -107,17 +107,24 @@ def run(encoder, batch, size, queries, steps, warmup):
         torch.nn.utils.clip_grad_norm_(model.parameters(), 5.0)
         optimiser.step()
 
+    def synchronise():
+        if device.startswith("cuda"):
+            torch.cuda.synchronize()
+
     for _ in range(warmup):
         step()
+    synchronise()
     started = time.perf_counter()
     for _ in range(steps):
         step()
+    synchronise()
     seconds = (time.perf_counter() - started) / steps
-    print(f"pytorch {encoder} {size}px batch {batch}: {seconds:.2f} s/step, "
+    print(f"pytorch {encoder} {size}px batch {batch} on {device}: {seconds:.3f} s/step, "
           f"{batch / seconds:.1f} images/s")
     return {"encoder": encoder, "batch": batch, "size": size, "queries": queries,
             "steps": steps, "seconds_per_step": seconds, "images_per_second": batch / seconds,
-            "torch_version": torch.__version__, "threads": torch.get_num_threads()}
+            "device": device, "torch_version": torch.__version__,
+            "threads": torch.get_num_threads()}
 
 
 def main():
@@ -128,10 +135,11 @@ def main():
     parser.add_argument("--queries", type=int, default=4608)
     parser.add_argument("--steps", type=int, default=10)
     parser.add_argument("--warmup", type=int, default=2)
+    parser.add_argument("--device", default="cpu", help="cpu, or cuda on a GPU machine")
     parser.add_argument("--json")
     args = parser.parse_args()
     encoders = [args.encoder] if args.encoder else ["small-cnn", "resnet18"]
-    results = [run(e, args.batch, args.size, args.queries, args.steps, args.warmup)
+    results = [run(e, args.batch, args.size, args.queries, args.steps, args.warmup, args.device)
                for e in encoders]
     if args.json:
         with open(args.json, "w") as f:

@@ -328,8 +328,8 @@ fn refine(
 /// bowl's refinements, the turn about the axis, has a median of 5·10⁻⁴ (fixed only by the
 /// spacing of the model points); the box's, 2·10⁻². Left free, that turn went back and forth
 /// with the sensor's noise until the 30th iteration in one refinement of six. Left out of the
-/// re-seeded refinements only, labelling the README's Kinect set is 30% faster with the same
-/// report; left out of every refinement, 40% faster, but a few heavily occluded instances
+/// re-seeded refinements only, labelling the Kinect set of docs/results.md is 30% faster with
+/// the same report; left out of every refinement, 40% faster, but a few heavily occluded instances
 /// (under 45% visible) lost their tilt's correction.
 const MIN_EIGEN_RATIO: f64 = 1e-3;
 

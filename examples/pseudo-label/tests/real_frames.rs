@@ -41,7 +41,7 @@ const BOP_SYMMETRIC: [u32; 8] = [1, 13, 14, 16, 18, 19, 20, 21];
 /// mustard bottle, whose 180° turn about its axis is a symmetry of the scan at the sensor's
 /// resolution (`SOURCES.md`) but not in BOP's evaluation with ADD: either pose may come first.
 /// The mug's and the foam brick's turned poses count as correct: BOP evaluates them with
-/// ADD-S. See the README's real-frame table.
+/// ADD-S. See the real-frame table of docs/results.md.
 const ADD_CORRECT: usize = 8;
 
 /// Best labels a correct labeller must place within 5° and 10 mm of a true pose of the
