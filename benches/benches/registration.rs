@@ -89,19 +89,28 @@ fn registration(c: &mut Criterion) {
     group.finish();
 }
 
-/// Radius (FPFH: 100 nearest within 5 voxels) and nearest-one (ICP) queries over the view.
-fn neighbours(c: &mut Criterion) {
+/// The downsampled view of a registration trial, and a parry BVH over its points.
+fn view_points() -> (Vec<Point3<f32>>, Bvh) {
     let mesh = egg_mesh().unwrap();
     let trial = registration_trials(&mesh, 1, 0).unwrap().remove(0);
     let points = downsample_voxel(&trial.view, VOXEL)
         .unwrap()
         .points()
         .to_vec();
-    let radius = 5.0 * VOXEL;
-    let kiddo = PointIndex::from_points(&points);
-    let glam = |p: &Point3<f32>| parry3d::math::Vector::new(p.x, p.y, p.z);
     let leaves: Vec<Aabb> = points.iter().map(|p| Aabb::new(glam(p), glam(p))).collect();
     let bvh = Bvh::from_leaves(BvhBuildStrategy::Binned, &leaves);
+    (points, bvh)
+}
+
+fn glam(p: &Point3<f32>) -> parry3d::math::Vector {
+    parry3d::math::Vector::new(p.x, p.y, p.z)
+}
+
+/// Radius queries over the view (FPFH: the 100 nearest within 5 voxels).
+fn radius_neighbours(c: &mut Criterion) {
+    let (points, bvh) = view_points();
+    let radius = 5.0 * VOXEL;
+    let kiddo = PointIndex::from_points(&points);
     let max = NonZeroUsize::new(100).unwrap();
 
     let mut group = c.benchmark_group("neighbours");
@@ -137,13 +146,21 @@ fn neighbours(c: &mut Criterion) {
             total
         })
     });
+    group.finish();
+}
+
+/// Nearest-one queries over the view (ICP), by kiddo, the grid that
+/// `PointIndex::with_nearest_grid` adds (the model index of labelling's ICP) and parry's BVH.
+fn nearest_neighbours(c: &mut Criterion) {
+    let (points, bvh) = view_points();
+    let kiddo = PointIndex::from_points(&points);
+    let mut group = c.benchmark_group("neighbours");
+    group.throughput(Throughput::Elements(points.len() as u64));
     let shifted: Vec<Point3<f32>> = points
         .iter()
         .map(|p| p + nalgebra::Vector3::new(0.001, -0.002, 0.001))
         .collect();
-    // kiddo, and the grid that `PointIndex::with_nearest_grid` adds (the model index of
-    // labelling's ICP): the nearest point, and the nearest within 1.5 voxels as ICP's
-    // refinement asks.
+    // The nearest point, and the nearest within 1.5 voxels as ICP's refinement asks.
     let grid = PointIndex::with_nearest_grid(&points);
     for (name, index) in [("kiddo", &kiddo), ("grid", &grid)] {
         group.bench_function(format!("nearest/{name}/{}", points.len()), |b| {
@@ -183,5 +200,5 @@ fn neighbours(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, registration, neighbours);
+criterion_group!(benches, registration, radius_neighbours, nearest_neighbours);
 criterion_main!(benches);

@@ -241,65 +241,20 @@ where
     F: FnMut(u8, &[u64]) -> Result<Vec<f64>, ModelError>,
 {
     options.validate_for(hierarchy)?;
+    let mut state = Refinement::default();
     let start = options.start_level;
     let cells: Vec<u64> = (0..hierarchy.cell_count(start)).collect();
-    let scores = log_density(start, &cells)?;
-    let log_volume = hierarchy.cell_volume(start).ln();
-    let mut leaves: Vec<Leaf> = cells
-        .iter()
-        .zip(&scores)
-        .map(|(&index, &score)| (start, index, score + log_volume))
-        .collect();
-    let mut queries = cells.len();
-    let mut evaluated: HashMap<(u8, u64), f64> = cells
-        .iter()
-        .zip(&scores)
-        .map(|(&c, &f)| ((start, c), f))
-        .collect();
-    loop {
-        let log_total = log_sum_exp(leaves.iter().map(|leaf| leaf.2));
-        let mut coarse: Vec<usize> = (0..leaves.len())
-            .filter(|&i| leaves[i].0 < options.level)
-            .collect();
-        let coarse_mass: f64 = coarse
-            .iter()
-            .map(|&i| (leaves[i].2 - log_total).exp())
-            .sum();
-        let affordable = (options.max_queries - queries) / 8;
-        if coarse.is_empty() || affordable == 0 || coarse_mass < 1.0 - options.keep_mass {
-            break;
-        }
-        let round = (affordable / 2).max(MIN_ROUND).min(affordable);
-        if round < coarse.len() {
-            coarse.select_nth_unstable_by(round, |&a, &b| {
-                leaves[b].2.total_cmp(&leaves[a].2).then(a.cmp(&b))
-            });
-            coarse.truncate(round);
-        }
-        coarse.sort_unstable();
-        let mut by_level: Vec<(u8, Vec<u64>)> = Vec::new();
-        for &i in coarse.iter().rev() {
-            let (level, index, _) = leaves.swap_remove(i);
-            let children = index * 8..index * 8 + 8;
-            match by_level.iter_mut().find(|(l, _)| *l == level + 1) {
-                Some((_, cells)) => cells.extend(children),
-                None => by_level.push((level + 1, children.collect())),
-            }
-        }
-        for (level, mut cells) in by_level {
-            cells.sort_unstable();
-            let scores = log_density(level, &cells)?;
-            let log_volume = hierarchy.cell_volume(level).ln();
-            queries += cells.len();
-            evaluated.extend(cells.iter().zip(&scores).map(|(&c, &f)| ((level, c), f)));
-            leaves.extend(
-                cells
-                    .iter()
-                    .zip(&scores)
-                    .map(|(&index, &score)| (level, index, score + log_volume)),
-            );
+    state.evaluate(hierarchy, &mut log_density, start, cells)?;
+    while let Some(heaviest) = cells_to_split(&state.leaves, options, state.queries) {
+        for (level, cells) in split(&mut state.leaves, heaviest) {
+            state.evaluate(hierarchy, &mut log_density, level, cells)?;
         }
     }
+    let Refinement {
+        leaves,
+        evaluated,
+        queries,
+    } = state;
     let log_total = log_sum_exp(leaves.iter().map(|leaf| leaf.2));
     let log_factors = coarse_log_factors(hierarchy, &leaves, &evaluated, options.level, log_total)?;
     let log_normaliser = log_sum_exp(
@@ -317,6 +272,89 @@ where
         queries,
         log_normaliser,
     })
+}
+
+/// What [`refine_on`] has evaluated so far: the leaves (cells not split) with their log-mass,
+/// `F` at every cell evaluated, and the number of queries.
+#[derive(Default)]
+struct Refinement {
+    leaves: Vec<Leaf>,
+    evaluated: HashMap<(u8, u64), f64>,
+    queries: usize,
+}
+
+impl Refinement {
+    /// Evaluates `cells` of `level` and adds them as leaves.
+    fn evaluate<H, F>(
+        &mut self,
+        hierarchy: &H,
+        log_density: &mut F,
+        level: u8,
+        cells: Vec<u64>,
+    ) -> Result<(), ModelError>
+    where
+        H: CellHierarchy,
+        F: FnMut(u8, &[u64]) -> Result<Vec<f64>, ModelError>,
+    {
+        let scores = log_density(level, &cells)?;
+        let log_volume = hierarchy.cell_volume(level).ln();
+        self.queries += cells.len();
+        self.evaluated
+            .extend(cells.iter().zip(&scores).map(|(&c, &f)| ((level, c), f)));
+        self.leaves.extend(
+            cells
+                .iter()
+                .zip(&scores)
+                .map(|(&index, &score)| (level, index, score + log_volume)),
+        );
+        Ok(())
+    }
+}
+
+/// The positions in `leaves` of the next round's cells to split, in increasing order: the
+/// heaviest leaves coarser than `options.level`, as many as half the queries left afford (at
+/// least `MIN_ROUND`); `None` when none is left, the budget is spent, or the coarse leaves
+/// hold less than `1 − keep_mass` of the mass.
+fn cells_to_split(leaves: &[Leaf], options: &RefineOptions, queries: usize) -> Option<Vec<usize>> {
+    let log_total = log_sum_exp(leaves.iter().map(|leaf| leaf.2));
+    let mut coarse: Vec<usize> = (0..leaves.len())
+        .filter(|&i| leaves[i].0 < options.level)
+        .collect();
+    let coarse_mass: f64 = coarse
+        .iter()
+        .map(|&i| (leaves[i].2 - log_total).exp())
+        .sum();
+    let affordable = (options.max_queries - queries) / 8;
+    if coarse.is_empty() || affordable == 0 || coarse_mass < 1.0 - options.keep_mass {
+        return None;
+    }
+    let round = (affordable / 2).max(MIN_ROUND).min(affordable);
+    if round < coarse.len() {
+        coarse.select_nth_unstable_by(round, |&a, &b| {
+            leaves[b].2.total_cmp(&leaves[a].2).then(a.cmp(&b))
+        });
+        coarse.truncate(round);
+    }
+    coarse.sort_unstable();
+    Some(coarse)
+}
+
+/// Removes the leaves at `positions` (increasing) and returns their children, grouped by level
+/// and sorted within each group, in the order the groups were first met from the end.
+fn split(leaves: &mut Vec<Leaf>, positions: Vec<usize>) -> Vec<(u8, Vec<u64>)> {
+    let mut by_level: Vec<(u8, Vec<u64>)> = Vec::new();
+    for &i in positions.iter().rev() {
+        let (level, index, _) = leaves.swap_remove(i);
+        let children = index * 8..index * 8 + 8;
+        match by_level.iter_mut().find(|(l, _)| *l == level + 1) {
+            Some((_, cells)) => cells.extend(children),
+            None => by_level.push((level + 1, children.collect())),
+        }
+    }
+    for (_, cells) in &mut by_level {
+        cells.sort_unstable();
+    }
+    by_level
 }
 
 /// `ln` of [`slope_factor`] for each leaf coarser than `level` (0 for the others, for cells of

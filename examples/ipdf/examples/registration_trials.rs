@@ -14,7 +14,8 @@ use clap::Parser;
 use ipdf::cloud_file::write_cloud;
 use nalgebra::{Isometry3, Point3};
 use registration::{
-    NormalOrientation, PrepareOptions, PreparedCloud, RegisterOptions, prepare_cloud, register,
+    NormalOrientation, PointCloud, PrepareOptions, PreparedCloud, RegisterOptions, prepare_cloud,
+    register,
 };
 use serde_json::json;
 use synth_data::trials::{RegistrationTrial, egg_mesh, model_cloud, registration_trials};
@@ -120,6 +121,13 @@ fn main() -> Result<()> {
     let model = model_cloud(&mesh, args.model_points, args.seed)?;
     write_cloud(&args.out.join("model.ply"), &model)?;
     let trials = registration_trials(&mesh, args.trials, args.seed)?;
+    write_trials(&args, &trials)?;
+    let (model_ms, results, model_points_down) = time_trials(&args, &model, &trials)?;
+    report(&args, &results, model_ms, model.len(), model_points_down)
+}
+
+/// The views as PLY files and `trials.json`, the manifest the Open3D script reads.
+fn write_trials(args: &Args, trials: &[RegistrationTrial]) -> Result<()> {
     let mut listed = Vec::new();
     for (i, trial) in trials.iter().enumerate() {
         let name = format!("view_{i:03}.ply");
@@ -136,19 +144,28 @@ fn main() -> Result<()> {
     write_atomically(&args.out.join("trials.json"), |f| {
         Ok(serde_json::to_writer_pretty(f, &manifest)?)
     })?;
+    Ok(())
+}
 
+/// Every trial registered `args.repeat` times; each stage's time is its minimum over the
+/// repeats (as the Open3D script's `--repeat`). Returns the model's preparation time (ms), the
+/// trials' results and the model's downsampled point count.
+fn time_trials(
+    args: &Args,
+    model: &PointCloud,
+    trials: &[RegistrationTrial],
+) -> Result<(f64, Vec<TrialResult>, usize)> {
     let options = PrepareOptions::for_voxel(args.voxel);
     let model_options = options.oriented(NormalOrientation::Consistent { neighbours: 10 });
     let view_options = options.oriented(NormalOrientation::TowardsViewpoint(Point3::origin()));
     let mut register_options = RegisterOptions::for_voxel(args.voxel);
     register_options.hypotheses = args.hypotheses;
-    // Each stage's time is its minimum over the repeats (as the Open3D script's `--repeat`).
     let mut model_ms = f64::INFINITY;
     let mut results: Vec<Option<TrialResult>> = vec![None; trials.len()];
-    let mut source = None;
+    let mut model_points_down = 0;
     for _ in 0..args.repeat.max(1) {
         let started = Instant::now();
-        let prepared = prepare_cloud(&model, &model_options)?;
+        let prepared = prepare_cloud(model, &model_options)?;
         model_ms = model_ms.min(started.elapsed().as_secs_f64() * 1e3);
         for (i, trial) in trials.iter().enumerate() {
             register_options.fgr.seed = args.seed.wrapping_add(1000 * i as u64);
@@ -158,10 +175,23 @@ fn main() -> Result<()> {
                 None => result,
             });
         }
-        source = Some(prepared);
+        model_points_down = prepared.cloud.len();
     }
-    let source = source.expect("at least one repeat");
-    let results: Vec<TrialResult> = results.into_iter().flatten().collect();
+    Ok((
+        model_ms,
+        results.into_iter().flatten().collect(),
+        model_points_down,
+    ))
+}
+
+/// Prints the success rate and the stages' median times, and writes `rust_registration.json`.
+fn report(
+    args: &Args,
+    results: &[TrialResult],
+    model_ms: f64,
+    model_points: usize,
+    model_points_down: usize,
+) -> Result<()> {
     let successes = results.iter().filter(|r| r.success()).count();
     let stage =
         |pick: fn(&TrialResult) -> f64| median(&mut results.iter().map(pick).collect::<Vec<_>>());
@@ -195,19 +225,19 @@ fn main() -> Result<()> {
         args.hypotheses,
         rayon::current_num_threads(),
         args.voxel,
-        model.len(),
-        source.cloud.len()
+        model_points,
+        model_points_down
     );
     println!("median ms: {medians}");
-    println!("success: {successes}/{} = {rate:.3}", trials.len());
+    println!("success: {successes}/{} = {rate:.3}", results.len());
     let report = json!({
         "threads": rayon::current_num_threads(),
         "voxel_size": f64::from(args.voxel),
         "repeat": args.repeat,
         "hypotheses": args.hypotheses,
-        "trials": trials.len(),
+        "trials": results.len(),
         "success_rate": rate,
-        "model_points_down": source.cloud.len(),
+        "model_points_down": model_points_down,
         "median_ms": medians,
         "per_trial": per_trial,
     });

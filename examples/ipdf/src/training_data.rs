@@ -15,8 +15,8 @@ use rayon::prelude::*;
 use tch::{Kind, Tensor};
 
 use bop_dataset::{
-    BopDataset, FileError, Intrinsics, PseudoInstance, SceneDir, read_models_info, read_pseudo_gt,
-    read_scene_camera, read_scene_gt, read_scene_gt_info,
+    BopDataset, FileError, GtInstance, Intrinsics, PseudoInstance, SceneDir, read_models_info,
+    read_pseudo_gt, read_scene_camera, read_scene_gt, read_scene_gt_info,
 };
 use ipdf_metrics::{CONTINUOUS_STEPS, SymmetryGroup};
 
@@ -200,30 +200,10 @@ fn scene_instances(
         _ => None,
     };
     let cameras = read_scene_camera(&scene.camera_path())?;
-    // Which object each mask shows: from the ground truth, or from the pseudo labels.
-    let object_ids: BTreeMap<u32, Vec<u32>> = match (&gt, &pseudo) {
-        (Some(gt), _) => gt
-            .iter()
-            .map(|(&im, list)| (im, list.iter().map(|i| i.obj_id).collect()))
-            .collect(),
-        (None, Some(pseudo)) => pseudo
-            .iter()
-            .map(|(&im, list)| (im, list.iter().map(|i| i.obj_id).collect()))
-            .collect(),
-        (None, None) => {
-            let reason = format!(
-                "missing: {} labels need the ground truth",
-                options.labels.name()
-            );
-            return Err(FileError::new(&scene.gt_path(), "file", reason).into());
-        }
-    };
+    let object_ids = mask_objects(&scene, gt.as_ref(), pseudo.as_ref(), options.labels)?;
     // The symmetry rotations, once per scene: a can's 400 take 80,000 comparisons to build.
     let analytical = group.rotations(options.continuous_steps);
     let truth_symmetries = group.rotations(CONTINUOUS_STEPS);
-    let turned = |rotation: &UnitQuaternion<f64>, symmetries: &[UnitQuaternion<f64>]| {
-        symmetries.iter().map(|s| rotation * s).collect::<Vec<_>>()
-    };
     let mut out = Vec::new();
     for (im_id, ids) in object_ids {
         for (instance, &obj_id) in ids.iter().enumerate() {
@@ -235,26 +215,8 @@ fn scene_instances(
                 continue;
             }
             let truth = gt.as_ref().and_then(|gt| gt.get(&im_id)?.get(instance));
-            let millimetres = |pose: &Isometry3<f64>| pose.translation.vector * 1000.0;
-            let labels = match options.labels {
-                LabelSource::Single => {
-                    truth.map(|t| (vec![t.pose.rotation], vec![millimetres(&t.pose)]))
-                }
-                LabelSource::Analytical => truth.map(|t| {
-                    (
-                        turned(&t.pose.rotation, &analytical),
-                        vec![millimetres(&t.pose)],
-                    )
-                }),
-                LabelSource::Pseudo => pseudo
-                    .as_ref()
-                    .and_then(|p| p.get(&im_id)?.get(instance))
-                    .map(|p| {
-                        let rotations = p.labels.iter().map(|l| l.pose.rotation).collect();
-                        let translations = p.labels.iter().map(|l| millimetres(&l.pose)).collect();
-                        (rotations, translations)
-                    }),
-            };
+            let pseudo_labels = pseudo.as_ref().and_then(|p| p.get(&im_id)?.get(instance));
+            let labels = instance_labels(options.labels, truth, pseudo_labels, &analytical);
             let Some((labels, translations)) = labels.filter(|l| !l.0.is_empty()) else {
                 continue;
             };
@@ -281,6 +243,71 @@ fn scene_instances(
         }
     }
     Ok(out)
+}
+
+/// Which object each mask of each image of `scene` shows: from the ground truth, or, without
+/// it, from the pseudo labels (`source` needs the ground truth otherwise).
+fn mask_objects(
+    scene: &SceneDir,
+    gt: Option<&BTreeMap<u32, Vec<GtInstance>>>,
+    pseudo: Option<&BTreeMap<u32, Vec<PseudoInstance>>>,
+    source: LabelSource,
+) -> Result<BTreeMap<u32, Vec<u32>>, Error> {
+    match (gt, pseudo) {
+        (Some(gt), _) => Ok(gt
+            .iter()
+            .map(|(&im, list)| (im, list.iter().map(|i| i.obj_id).collect()))
+            .collect()),
+        (None, Some(pseudo)) => Ok(pseudo
+            .iter()
+            .map(|(&im, list)| (im, list.iter().map(|i| i.obj_id).collect()))
+            .collect()),
+        (None, None) => {
+            let reason = format!("missing: {} labels need the ground truth", source.name());
+            Err(FileError::new(&scene.gt_path(), "file", reason).into())
+        }
+    }
+}
+
+/// An instance's rotation labels and translation labels (mm).
+type LabelSets = (Vec<UnitQuaternion<f64>>, Vec<Vector3<f64>>);
+
+/// An instance's rotation labels and translation labels (mm) from `source`: its ground truth
+/// (`truth`), turned by the object's symmetries (`analytical`), or its pseudo labels; `None`
+/// when the source has none for it.
+fn instance_labels(
+    source: LabelSource,
+    truth: Option<&GtInstance>,
+    pseudo: Option<&PseudoInstance>,
+    analytical: &[UnitQuaternion<f64>],
+) -> Option<LabelSets> {
+    match source {
+        LabelSource::Single => truth.map(|t| (vec![t.pose.rotation], vec![millimetres(&t.pose)])),
+        LabelSource::Analytical => truth.map(|t| {
+            (
+                turned(&t.pose.rotation, analytical),
+                vec![millimetres(&t.pose)],
+            )
+        }),
+        LabelSource::Pseudo => pseudo.map(|p| {
+            let rotations = p.labels.iter().map(|l| l.pose.rotation).collect();
+            let translations = p.labels.iter().map(|l| millimetres(&l.pose)).collect();
+            (rotations, translations)
+        }),
+    }
+}
+
+/// A pose's translation in millimetres.
+fn millimetres(pose: &Isometry3<f64>) -> Vector3<f64> {
+    pose.translation.vector * 1000.0
+}
+
+/// `rotation` composed with each of `symmetries`.
+fn turned(
+    rotation: &UnitQuaternion<f64>,
+    symmetries: &[UnitQuaternion<f64>],
+) -> Vec<UnitQuaternion<f64>> {
+    symmetries.iter().map(|s| rotation * s).collect()
 }
 
 /// The scene's `scene_pseudo_gt.json`; a missing one is an error saying how to make it.

@@ -163,19 +163,7 @@ impl TranslationTrainer {
         self.model.check_inputs(images, geometry)?;
         check_translation_sets(label_sets, geometry)?;
         let space = *self.model.space();
-        for (image, set) in label_sets.iter().enumerate() {
-            if let Some(t) = set.iter().find(|t| !space.volume.contains(t)) {
-                return Err(ModelError::LabelSet {
-                    image,
-                    reason: format!(
-                        "translation {:?} mm lies outside the working volume {:?} to {:?} mm",
-                        t.as_slice(),
-                        space.volume.min,
-                        space.volume.max
-                    ),
-                });
-            }
-        }
+        check_in_volume(&space, label_sets)?;
         let (device, kind) = (self.model.device(), self.model.kind());
         let images = if train {
             augment(&images.to_device(device), &self.options.augmentation, rng)
@@ -185,26 +173,12 @@ impl TranslationTrainer {
         let batch = label_sets.len() as i64;
         let others = self.options.queries - 1;
         let (queries, query_log_q, outside) = draw_queries(&space, label_sets, others, rng);
-        let longest = label_sets.iter().map(Vec::len).max().unwrap_or(1);
-        let mut labels = Vec::with_capacity(label_sets.len() * longest);
-        let mut label_log_q = Vec::with_capacity(labels.capacity());
-        let mut mask = Vec::with_capacity(labels.capacity());
         let noise = if train {
             self.options.label_noise_mm
         } else {
             0.0
         };
-        for set in label_sets {
-            for k in 0..longest {
-                let t = set[k.min(set.len() - 1)] + standard_normal(rng) * noise;
-                let t = t
-                    .sup(&Vector3::from(space.volume.min))
-                    .inf(&Vector3::from(space.volume.max));
-                labels.extend([t.x, t.y, t.z]);
-                label_log_q.push(log_proposal(&space, &set[0], &t));
-                mask.push(if k < set.len() { 1.0 } else { 0.0 });
-            }
-        }
+        let (longest, labels, label_log_q, mask) = padded_labels(&space, label_sets, noise, rng);
         let tensor = |values: Vec<f64>, shape: &[i64]| {
             Tensor::from_slice(&values)
                 .reshape(shape)
@@ -268,6 +242,55 @@ impl TranslationTrainer {
             &loss,
         )
     }
+}
+
+/// Refuses a label set with a translation outside the working volume, naming it.
+fn check_in_volume(
+    space: &TranslationSpace,
+    label_sets: &[Vec<Vector3<f64>>],
+) -> Result<(), ModelError> {
+    for (image, set) in label_sets.iter().enumerate() {
+        if let Some(t) = set.iter().find(|t| !space.volume.contains(t)) {
+            return Err(ModelError::LabelSet {
+                image,
+                reason: format!(
+                    "translation {:?} mm lies outside the working volume {:?} to {:?} mm",
+                    t.as_slice(),
+                    space.volume.min,
+                    space.volume.max
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// The label sets padded to the longest (`K`, returned first): per crop `K` translations
+/// (mm, flattened `[B·K·3]`), each moved by Gaussian noise of `noise` mm per axis (drawn from
+/// `rng`) and kept inside the volume, with their proposal log-densities `[B·K]` and validity
+/// mask `[B·K]` (a padded copy of the last label counts 0).
+fn padded_labels(
+    space: &TranslationSpace,
+    label_sets: &[Vec<Vector3<f64>>],
+    noise: f64,
+    rng: &mut ChaCha8Rng,
+) -> (usize, Vec<f64>, Vec<f64>, Vec<f64>) {
+    let longest = label_sets.iter().map(Vec::len).max().unwrap_or(1);
+    let mut labels = Vec::with_capacity(label_sets.len() * longest * 3);
+    let mut label_log_q = Vec::with_capacity(label_sets.len() * longest);
+    let mut mask = Vec::with_capacity(label_sets.len() * longest);
+    for set in label_sets {
+        for k in 0..longest {
+            let t = set[k.min(set.len() - 1)] + standard_normal(rng) * noise;
+            let t = t
+                .sup(&Vector3::from(space.volume.min))
+                .inf(&Vector3::from(space.volume.max));
+            labels.extend([t.x, t.y, t.z]);
+            label_log_q.push(log_proposal(space, &set[0], &t));
+            mask.push(if k < set.len() { 1.0 } else { 0.0 });
+        }
+    }
+    (longest, labels, label_log_q, mask)
 }
 
 /// `count` queries per image from the proposal around its first label: the flattened
