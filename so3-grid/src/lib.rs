@@ -42,8 +42,9 @@ mod random;
 
 pub use cell::{MAX_LEVEL, cell_count, cell_index, cell_parts, cell_volume, children, parent};
 pub use convert::{
-    ORTHONORMALITY_TOLERANCE, geodesic_distance, rotation_from_axis_angle, rotation_from_matrix,
-    rotation_from_wxyz, rotation_to_matrix, rotation_to_wxyz,
+    ORTHONORMALITY_TOLERANCE, PUBLISHED_ROTATION_TOLERANCE, geodesic_distance, orthogonality_error,
+    rotation_from_axis_angle, rotation_from_matrix, rotation_from_wxyz, rotation_to_matrix,
+    rotation_to_wxyz,
 };
 pub use error::GridError;
 pub use grid::{Grid, locate};

@@ -256,6 +256,35 @@ fn malformed_files_name_the_file_and_the_key() {
         r#"{"0": [{"obj_id": 1, "cam_R_m2c": [1, 0, 0, 0, 1, 0, 0, 0, 1], "cam_t_m2c": [0, 0]}]}"#,
     );
     assert_eq!(read_scene_gt(&path).unwrap_err().field, "0[0].cam_t_m2c");
+    // Ground truth as real BOP datasets publish it, orthonormal only to about 1e-2 (here a
+    // rotation about z by 0.6 rad, scaled by 1.005): read as that rotation. An entry off by 0.3
+    // is refused, naming the field.
+    let (c, s) = (0.6f64.cos() * 1.005, 0.6f64.sin() * 1.005);
+    let path = write(
+        "published.json",
+        &format!(
+            r#"{{"0": [{{"obj_id": 1, "cam_R_m2c": [{c}, {}, 0, {s}, {c}, 0, 0, 0, 1.005], "cam_t_m2c": [0, 0, 700]}}]}}"#,
+            -s
+        ),
+    );
+    let read = read_scene_gt(&path).unwrap();
+    let angle = read[&0][0]
+        .pose
+        .rotation
+        .angle_to(&nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.0, 0.6));
+    assert!(angle < 1e-12, "{angle}");
+    let path = write(
+        "garbled.json",
+        &format!(
+            r#"{{"0": [{{"obj_id": 1, "cam_R_m2c": [{c}, {}, 0.3, {s}, {c}, 0, 0, 0, 1.005], "cam_t_m2c": [0, 0, 700]}}]}}"#,
+            -s
+        ),
+    );
+    let error = read_scene_gt(&path).unwrap_err();
+    assert_eq!(
+        (error.path.as_path(), error.field.as_str()),
+        (path.as_path(), "0[0].cam_R_m2c")
+    );
     let path = write("ids.json", r#"{"0": [{"obj_id": -3}]}"#);
     assert_eq!(read_object_ids(&path).unwrap_err().field, "0[0].obj_id");
     let path = write(
