@@ -1,6 +1,33 @@
 //! The set negative log-likelihood both models train with: each label in its own normaliser
-//! over the step's queries, with importance weights for queries drawn from any proposal.
+//! over the step's queries, with importance weights for queries drawn from any proposal; and
+//! the check of one image's label set that both models make before it.
 use tch::Tensor;
+
+use crate::ModelError;
+
+/// Checks the label set of image `image`, of rotations or translations: a
+/// [`ModelError::LabelSet`] for an empty set, or for the first label that is `bad`, with
+/// `reason` of its index and value.
+pub(crate) fn check_label_set<T>(
+    image: usize,
+    set: &[T],
+    bad: impl Fn(&T) -> bool,
+    reason: impl Fn(usize, &T) -> String,
+) -> Result<(), ModelError> {
+    if set.is_empty() {
+        return Err(ModelError::LabelSet {
+            image,
+            reason: "empty label set".into(),
+        });
+    }
+    match set.iter().position(bad) {
+        Some(i) => Err(ModelError::LabelSet {
+            image,
+            reason: reason(i, &set[i]),
+        }),
+        None => Ok(()),
+    }
+}
 
 /// How far below the best query score (in nats) a score stops mattering to the normaliser.
 const NEGLIGIBLE_LOG_RATIO: f64 = 50.0;

@@ -9,7 +9,7 @@ use tch::{Device, Kind, Tensor};
 
 use crate::ModelError;
 use crate::encoding::rotations_to_tensor;
-use crate::loss::set_nll_with;
+use crate::loss::{check_label_set, set_nll_with};
 
 /// How the query rotations of a training step are drawn.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -165,7 +165,7 @@ pub(crate) fn check_label_sets(
         });
     }
     for (image, set) in label_sets.iter().enumerate() {
-        ModelError::check_label_set(
+        check_label_set(
             image,
             set,
             |q| !q.coords.iter().all(|v| v.is_finite()) || (q.norm() - 1.0).abs() > 1e-6,
@@ -173,32 +173,6 @@ pub(crate) fn check_label_sets(
         )?;
     }
     Ok(())
-}
-
-impl ModelError {
-    /// Checks the label set of image `image`, of rotations or translations (the translation
-    /// model's checks reach it as the error's function): a [`ModelError::LabelSet`] for an empty
-    /// set, or for the first label that is `bad`, with `reason` of its index and value.
-    pub(crate) fn check_label_set<T>(
-        image: usize,
-        set: &[T],
-        bad: impl Fn(&T) -> bool,
-        reason: impl Fn(usize, &T) -> String,
-    ) -> Result<(), Self> {
-        if set.is_empty() {
-            return Err(Self::LabelSet {
-                image,
-                reason: "empty label set".into(),
-            });
-        }
-        match set.iter().position(bad) {
-            Some(i) => Err(Self::LabelSet {
-                image,
-                reason: reason(i, &set[i]),
-            }),
-            None => Ok(()),
-        }
-    }
 }
 
 /// Labels padded to the largest set: `[B, K, 9]` rotations and their `[B, K]` validity mask.

@@ -7,6 +7,7 @@ use tch::{Device, Kind, Tensor, nn};
 use super::geometry::{FEATURES, crop_factors, crop_features, crop_relative};
 use super::{CropGeometry, WorkingVolume};
 use crate::encoding::encode_fourier;
+use crate::loss::check_label_set;
 use crate::network::Network;
 use crate::{ModelConfig, ModelError};
 
@@ -121,7 +122,7 @@ pub(crate) fn check_translation_sets(
     }
     for (image, (set, g)) in label_sets.iter().zip(geometry).enumerate() {
         g.validate(image)?;
-        ModelError::check_label_set(
+        check_label_set(
             image,
             set,
             |t| !t.iter().all(|v| v.is_finite()) || t.z <= 0.0,
