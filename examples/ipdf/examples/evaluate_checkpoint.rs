@@ -7,7 +7,6 @@
 use std::path::PathBuf;
 
 use anyhow::Result;
-use indicatif::ProgressBar;
 use ipdf::eval::rotation::evaluate;
 use ipdf::training_data::rendered_examples;
 use ipdf_model::RefineOptions;
@@ -26,12 +25,7 @@ fn main() -> Result<()> {
     let size = model.config().input_size as usize;
     let examples = rendered_examples(&cube, 8, size, 99)?;
     // Level 2 refined hierarchically to level 4 (as `ipdf eval` does by default).
-    let scores = evaluate(
-        &model,
-        &examples,
-        &RefineOptions::to_level(4),
-        &ProgressBar::hidden(),
-    )?;
+    let scores = evaluate(&model, &examples, &RefineOptions::to_level(4), &())?;
     println!(
         "{} images: LLH {:.2} (uniform: −2.29), MAAD {:.1}°, Recall MAAD {:.1}°",
         scores.images, scores.llh, scores.maad_deg, scores.recall_maad_deg

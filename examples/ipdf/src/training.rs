@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use bop_dataset::BopDataset;
-use indicatif::ProgressBar;
+use bop_dataset::Progress;
 use ipdf_model::rotation::{ImplicitPdf, LabelledImages, QuerySampling, TrainOptions, Trainer};
 use ipdf_model::translation::{
     LabelledTranslations, TranslationConfig, TranslationPdf, TranslationSpace,
@@ -156,7 +156,7 @@ pub struct TrainResult {
 /// Trains (or resumes) the run of `request` (a rotation or a translation model; see
 /// [`Target::Pose`] for both); `progress` advances by one per step. A run folder holding a run
 /// of other data, another target or another network is refused.
-pub fn train_model(request: &TrainRequest, progress: &ProgressBar) -> Result<TrainResult, Error> {
+pub fn train_model(request: &TrainRequest, progress: &dyn Progress) -> Result<TrainResult, Error> {
     request.model.validate()?;
     let dataset = BopDataset::open(&request.dataset, &request.models_dir)?;
     let (obj_id, object) = choose_object(&dataset, request.obj_id, request.object_name.as_deref())?;
@@ -250,7 +250,7 @@ fn fit_run<T: FitTarget>(
     train: &T::Data,
     validation: Option<&T::Data>,
     request: &TrainRequest,
-    progress: &ProgressBar,
+    progress: &dyn Progress,
 ) -> Result<Vec<EpochReport>, Error> {
     let options = FitOptions {
         epochs: request.epochs,
@@ -259,14 +259,14 @@ fn fit_run<T: FitTarget>(
         validation_level: 2,
     };
     let total_steps = request.epochs * request.steps_per_epoch;
-    progress.set_position(trainer.steps_done().min(total_steps));
+    progress.set_total(total_steps, trainer.steps_done().min(total_steps));
     Ok(fit(
         trainer,
         train,
         validation,
         &options,
         &request.out,
-        |_| progress.inc(1),
+        |_| progress.advance(1),
     )?)
 }
 

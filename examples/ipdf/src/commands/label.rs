@@ -8,7 +8,7 @@ use anyhow::Result;
 use bop_dataset::{BopDataset, DatasetInfo};
 use depth_render::SensorPreset;
 use ipdf::plots::{plot_label_errors, write_png};
-use ipdf::progress::{Bar, bar};
+use ipdf::progress::bar;
 use pseudo_label::{
     DatasetOptions, LabelOptions, LabelSummary, Shard, Strategy, label_dataset, report,
 };
@@ -99,9 +99,9 @@ pub fn run(args: &LabelArgs, seed: u64) -> Result<serde_json::Value> {
         seed,
         ..LabelOptions::default()
     };
-    let progress = Bar(bar(dataset.image_count(&args.split)? as u64, "images"));
+    let progress = bar(dataset.image_count(&args.split)? as u64, "images");
     let summary = label_dataset(&dataset, &dataset_options, &options, &progress)?;
-    progress.0.finish_and_clear();
+    progress.finish_and_clear();
     for (obj_id, repairs) in &summary.mesh_repairs {
         warn_repairs(&dataset.model_path(*obj_id), repairs);
     }

@@ -7,7 +7,7 @@ use anyhow::{Result, bail};
 use bop_dataset::BopDataset;
 use bop_dataset::{camera_from_json, read_json};
 use depth_render::{MaskErrors, SensorPreset, check_mesh_size};
-use ipdf::progress::{Bar, bar};
+use ipdf::progress::bar;
 use serde_json::json;
 use synth_data::{ObjectKind, SynthObject, SynthOptions, Variant, ViewRange, synthesize};
 
@@ -142,9 +142,9 @@ pub fn run(args: &SynthArgs, seed: u64) -> Result<serde_json::Value> {
         seed,
     };
     let dataset = BopDataset::new(&args.out);
-    let progress = Bar(bar((args.frames * objects.len()) as u64, "frames"));
+    let progress = bar((args.frames * objects.len()) as u64, "frames");
     let summary = synthesize(&dataset, &args.split, &objects, &options, &progress)?;
-    progress.0.finish_and_clear();
+    progress.finish_and_clear();
     Ok(json!({
         "dataset": args.out,
         "split": args.split,

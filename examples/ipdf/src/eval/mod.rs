@@ -7,7 +7,7 @@ pub mod translation;
 use std::path::{Path, PathBuf};
 
 use bop_dataset::BopDataset;
-use indicatif::ProgressBar;
+use bop_dataset::Progress;
 use ipdf_model::rotation::{ImplicitPdf, UNDER_RESOLUTION_LIMIT};
 use ipdf_model::translation::TranslationPdf;
 use ipdf_model::{RefineOptions, default_device};
@@ -101,7 +101,7 @@ pub struct TranslationRunEval {
 /// rotations; translations are refined to 2 mm cells); `progress` advances by one per crop.
 pub fn evaluate_translation_run(
     request: &EvalRequest,
-    progress: &ProgressBar,
+    progress: &dyn Progress,
 ) -> Result<TranslationRunEval, Error> {
     let (info, dataset) = run_dataset(request)?;
     let model = TranslationPdf::load(&request.checkpoint, default_device())?;
@@ -110,7 +110,7 @@ pub fn evaluate_translation_run(
         &dataset,
         &ExampleOptions::evaluation(&request.split, info.obj_id, size),
     )?;
-    progress.set_length(examples.instances.len() as u64);
+    progress.set_total(examples.instances.len() as u64, 0);
     let (translation, _) = evaluate_translation(&model, &examples, progress)?;
     Ok(TranslationRunEval {
         object: info.object,
@@ -137,7 +137,7 @@ fn run_dataset(request: &EvalRequest) -> Result<(RunInfo, BopDataset), Error> {
 
 /// Scores the run of `request` on its split; `progress` has its length set to the crops and
 /// advances by one per crop.
-pub fn evaluate_run(request: &EvalRequest, progress: &ProgressBar) -> Result<EvalResult, Error> {
+pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<EvalResult, Error> {
     let grid = if request.dense {
         if request.level > 5 {
             return Err(Error::option(
@@ -159,7 +159,7 @@ pub fn evaluate_run(request: &EvalRequest, progress: &ProgressBar) -> Result<Eva
     let examples = load_examples(&dataset, &options)?;
     let translation_model = pose_translation_model(&request.checkpoint, &model)?;
     let passes = if translation_model.is_some() { 2 } else { 1 };
-    progress.set_length(passes * examples.instances.len() as u64);
+    progress.set_total(passes * examples.instances.len() as u64, 0);
     let (scores, rotations) = evaluate_rotations(
         &model,
         &examples,

@@ -3,7 +3,7 @@
 //! log-density over the ground-truth symmetry set), MAAD (expected distance of a sample to the
 //! nearest ground-truth rotation) and Recall MAAD (mean distance of each ground-truth rotation
 //! to the nearest predicted one), averaged over crops.
-use indicatif::ProgressBar;
+use bop_dataset::Progress;
 use ipdf_metrics::{Distribution, GridCell, RECALL_THRESHOLD, maad, recall_maad};
 use ipdf_model::rotation::{ArgmaxOptions, ImplicitPdf, Predictor};
 use ipdf_model::{CellMasses, RefineOptions};
@@ -42,7 +42,7 @@ pub fn evaluate(
     model: &ImplicitPdf,
     examples: &Examples,
     grid: &RefineOptions,
-    progress: &ProgressBar,
+    progress: &dyn Progress,
 ) -> Result<Scores, Error> {
     Ok(evaluate_rotations(model, examples, grid, false, progress)?.0)
 }
@@ -55,7 +55,7 @@ pub fn evaluate_rotations(
     examples: &Examples,
     grid: &RefineOptions,
     argmax: bool,
-    progress: &ProgressBar,
+    progress: &dyn Progress,
 ) -> Result<(Scores, Vec<UnitQuaternion<f64>>), Error> {
     let Some(truths) = &examples.truth_sets else {
         return Err(Error::option(
@@ -86,7 +86,7 @@ pub fn evaluate_rotations(
             let best = predictor.argmax_from(&image_term, &masses, &argmax_options)?;
             rotations.push(best.rotation);
         }
-        progress.inc(1);
+        progress.advance(1);
     }
     let n = truths.len().max(1) as f64;
     let scores = Scores {

@@ -4,7 +4,7 @@
 //! poses, the joint LLH and the ADD-S AUC (thresholds up to 10% of the object's diameter).
 use std::path::{Path, PathBuf};
 
-use indicatif::ProgressBar;
+use bop_dataset::Progress;
 use ipdf_metrics::{ModelPoints, add_s, auc, translation_error};
 use ipdf_model::rotation::ImplicitPdf;
 use ipdf_model::translation::{
@@ -113,7 +113,7 @@ fn predict_from(
 pub fn evaluate_translation(
     model: &TranslationPdf,
     examples: &Examples,
-    progress: &ProgressBar,
+    progress: &dyn Progress,
 ) -> Result<(TranslationEval, Vec<Vector3<f64>>), Error> {
     let truths = truth_poses(examples)?;
     let predictor = TranslationPredictor::new(model);
@@ -135,7 +135,7 @@ pub fn evaluate_translation(
         depth_errors.push(along.abs());
         lateral_errors.push((offset.norm_squared() - along * along).max(0.0).sqrt());
         argmax.push(best.translation);
-        progress.inc(1);
+        progress.advance(1);
     }
     let n = truths.len().max(1) as f64;
     let scores = TranslationEval {

@@ -35,7 +35,7 @@ use crate::eval::rotation::distribution_figure;
 use crate::eval::translation::predict_translation;
 use crate::eval::{EvalRequest, EvalResult, eval_file, evaluate_run};
 use crate::plots::{plot_label_errors, plot_training_curves, plot_translation, write_png};
-use crate::progress::{Bar, bar};
+use crate::progress::bar;
 use crate::run_info::RunInfo;
 use crate::training::{TRANSLATION_DIR, Target, TrainRequest, is_trained, train_model};
 use crate::training_data::{
@@ -168,10 +168,10 @@ fn synthesize_datasets(out: &Path, plan: &Plan, seed: u64) -> Result<(), Error> 
             sensor: plan.sensor.map(SensorPreset::sensor),
             ..SynthOptions::default()
         };
-        let progress = Bar(bar((frames * objects.len()) as u64, "frames"));
+        let progress = bar((frames * objects.len()) as u64, "frames");
         let dataset = BopDataset::new(&data_dir(out, variant));
         synthesize(&dataset, split, &objects, &options, &progress)?;
-        progress.0.finish_and_clear();
+        progress.finish_and_clear();
     }
     Ok(())
 }
@@ -202,9 +202,9 @@ fn label_datasets(
                 sensor: plan.sensor.unwrap_or(defaults.sensor),
                 ..defaults
             };
-            let progress = Bar(bar(dataset.image_count("train")? as u64, "images"));
+            let progress = bar(dataset.image_count("train")? as u64, "images");
             label_dataset(&dataset, &dataset_options, &options, &progress)?;
-            progress.0.finish_and_clear();
+            progress.finish_and_clear();
             score_labels(out, variant)?.write(&path)?;
         }
         let report: LabelReport = read_json_as(&path)?;
