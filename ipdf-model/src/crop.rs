@@ -32,14 +32,126 @@ impl CropOptions {
     }
 }
 
+/// A rectangle of an image in the continuous coordinates of [`CropBox`]: a detector's box, or
+/// the bounding box of a mask's pixels. It selects the pixels whose centres lie inside it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ImageBox {
+    /// Left edge, pixels.
+    pub x: f64,
+    /// Top edge, pixels.
+    pub y: f64,
+    /// Width, pixels.
+    pub width: f64,
+    /// Height, pixels.
+    pub height: f64,
+}
+
+impl ImageBox {
+    /// The box of BOP's `[x, y, w, h]` (`bbox_visib`, `bbox_obj`), whose `w` and `h` are the
+    /// last pixel's offsets from the first (the BOP toolkit's `calc_2d_bbox`: a box one pixel
+    /// wide has `w` 0); `None` for BOP's empty box `[-1, -1, -1, -1]` or any negative entry.
+    pub fn from_bop(bbox: [i64; 4]) -> Option<Self> {
+        let [x, y, w, h] = bbox;
+        (x >= 0 && y >= 0 && w >= 0 && h >= 0).then(|| Self {
+            x: x as f64,
+            y: y as f64,
+            width: (w + 1) as f64,
+            height: (h + 1) as f64,
+        })
+    }
+
+    /// The bounding box of the non-zero pixels of `mask` (rows of `width`), `None` when it
+    /// selects none.
+    pub fn around(mask: &[u8], width: usize) -> Option<Self> {
+        let (x0, y0, x1, y1) = mask_bounds(mask, width.max(1))?;
+        Some(Self {
+            x: x0 as f64,
+            y: y0 as f64,
+            width: (x1 - x0 + 1) as f64,
+            height: (y1 - y0 + 1) as f64,
+        })
+    }
+
+    /// Why the box cannot be cropped from a `width × height` image: not finite, empty or
+    /// negative, or reaching outside the image; `None` when it can.
+    pub fn problem(&self, width: usize, height: usize) -> Option<String> {
+        let Self {
+            x,
+            y,
+            width: w,
+            height: h,
+        } = *self;
+        if ![x, y, w, h].iter().all(|v| v.is_finite()) {
+            return Some(format!("{x},{y},{w},{h}: not finite numbers"));
+        }
+        if w < 1.0 || h < 1.0 {
+            return Some(format!(
+                "{x},{y},{w},{h}: the box is empty or negative (width and height need 1 pixel or more)"
+            ));
+        }
+        if x < 0.0 || y < 0.0 || x + w > width as f64 || y + h > height as f64 {
+            return Some(format!(
+                "{x},{y},{w},{h}: the box reaches outside the {width} × {height} image \
+                 (x in 0..{width} and y in 0..{height}, x + w ≤ {width}, y + h ≤ {height})"
+            ));
+        }
+        None
+    }
+
+    /// The part of the box inside a `width × height` image (empty when none is).
+    pub fn clipped(&self, width: usize, height: usize) -> Self {
+        let (x0, y0) = (self.x.max(0.0), self.y.max(0.0));
+        let x1 = (self.x + self.width).min(width as f64);
+        let y1 = (self.y + self.height).min(height as f64);
+        Self {
+            x: x0,
+            y: y0,
+            width: (x1 - x0).max(0.0),
+            height: (y1 - y0).max(0.0),
+        }
+    }
+
+    /// The pixels of a `width × height` image whose centres lie inside the box, as a mask.
+    pub fn mask(&self, width: usize, height: usize) -> Vec<u8> {
+        let inside = |start: f64, length: f64, i: usize| {
+            let centre = i as f64 + 0.5;
+            start <= centre && centre < start + length
+        };
+        (0..width * height)
+            .map(|i| {
+                u8::from(
+                    inside(self.x, self.width, i % width) && inside(self.y, self.height, i / width),
+                )
+            })
+            .collect()
+    }
+
+    /// The square cut around the box: centred on it, its side the box's longer side plus the
+    /// margin.
+    pub fn square(&self, margin: f64) -> CropBox {
+        CropBox {
+            centre_x: self.x + self.width / 2.0,
+            centre_y: self.y + self.height / 2.0,
+            side: self.width.max(self.height) * (1.0 + margin),
+        }
+    }
+}
+
 /// The square [`crop_object`] cuts around the non-zero pixels of `mask` (`width × height`):
-/// centred on the mask's bounding box, its side the box's longer side plus the margin.
+/// [`ImageBox::square`] of their bounding box.
 pub fn crop_box(
     mask: &[u8],
     width: usize,
     height: usize,
     options: &CropOptions,
 ) -> Result<CropBox, ModelError> {
+    check_mask(mask, width, height)?;
+    check_options(options)?;
+    let bounds = ImageBox::around(mask, width).ok_or(ModelError::EmptyMask)?;
+    Ok(bounds.square(options.margin))
+}
+
+fn check_mask(mask: &[u8], width: usize, height: usize) -> Result<(), ModelError> {
     if width == 0 || height == 0 || mask.len() != width * height {
         return Err(ModelError::ImageShape {
             field: "mask",
@@ -47,6 +159,10 @@ pub fn crop_box(
             got: format!("{} pixels", mask.len()),
         });
     }
+    Ok(())
+}
+
+fn check_options(options: &CropOptions) -> Result<(), ModelError> {
     if !(1..=4096).contains(&options.size) || !(0.0..=10.0).contains(&options.margin) {
         return Err(ModelError::option(
             "size",
@@ -56,12 +172,7 @@ pub fn crop_box(
             ),
         ));
     }
-    let (x0, y0, x1, y1) = mask_bounds(mask, width).ok_or(ModelError::EmptyMask)?;
-    Ok(CropBox {
-        centre_x: (x0 + x1 + 1) as f64 / 2.0,
-        centre_y: (y0 + y1 + 1) as f64 / 2.0,
-        side: ((x1 - x0 + 1).max(y1 - y0 + 1)) as f64 * (1.0 + options.margin),
-    })
+    Ok(())
 }
 
 /// The inclusive bounding box `(x0, y0, x1, y1)` of the non-zero pixels of `mask` (rows of
@@ -92,6 +203,36 @@ pub fn crop_object(
     height: usize,
     options: &CropOptions,
 ) -> Result<Vec<f32>, ModelError> {
+    check_rgb(rgb, width, height)?;
+    let square = crop_box(mask, width, height, options)?;
+    Ok(resample(rgb, mask, width, height, &square, options.size))
+}
+
+/// The crop of `rgb` (as [`crop_object`]) in the square around `image_box`
+/// ([`ImageBox::square`]): the pixels inside the box as they are, those outside it 0 — the
+/// crop [`crop_object`] cuts for a mask that fills the box. Fails for a box
+/// [`ImageBox::problem`] refuses.
+pub fn crop_in_box(
+    rgb: &[u8],
+    image_box: &ImageBox,
+    width: usize,
+    height: usize,
+    options: &CropOptions,
+) -> Result<(Vec<f32>, CropBox), ModelError> {
+    check_rgb(rgb, width, height)?;
+    check_options(options)?;
+    if let Some(problem) = image_box.problem(width, height) {
+        return Err(ModelError::option("box", problem));
+    }
+    let mask = image_box.mask(width, height);
+    let square = image_box.square(options.margin);
+    Ok((
+        resample(rgb, &mask, width, height, &square, options.size),
+        square,
+    ))
+}
+
+fn check_rgb(rgb: &[u8], width: usize, height: usize) -> Result<(), ModelError> {
     if width == 0 || height == 0 || rgb.len() != width * height * 3 {
         return Err(ModelError::ImageShape {
             field: "rgb",
@@ -102,12 +243,24 @@ pub fn crop_object(
             got: format!("{} bytes", rgb.len()),
         });
     }
+    Ok(())
+}
+
+/// The `size × size` bilinear resampling of the pixels of `rgb` selected by `mask` in
+/// `square`, channel-major in `[0, 1]` (0 off the mask or the image).
+fn resample(
+    rgb: &[u8],
+    mask: &[u8],
+    width: usize,
+    height: usize,
+    square: &CropBox,
+    size: usize,
+) -> Vec<f32> {
     let CropBox {
         centre_x,
         centre_y,
         side,
-    } = crop_box(mask, width, height, options)?;
-    let size = options.size;
+    } = *square;
     let scale = side / size as f64;
     let plane = size * size;
     let mut out = vec![0.0f32; 3 * plane];
@@ -136,7 +289,7 @@ pub fn crop_object(
             }
         }
     }
-    Ok(out)
+    out
 }
 
 /// Crops from [`crop_object`] stacked into a `[B, 3, S, S]` float tensor on the CPU.
@@ -215,6 +368,80 @@ mod tests {
             });
             proptest::prop_assert_eq!(mask_bounds(mask, width), expected);
         }
+    }
+
+    proptest::proptest! {
+        /// A box crop is the crop of the mask that fills the box (the mask drawn here pixel by
+        /// pixel from the integer box), with the same square.
+        #[test]
+        fn a_box_crops_as_the_mask_that_fills_it(
+            (width, height) in (4usize..40, 4usize..40),
+            corner in (0.0f64..1.0, 0.0f64..1.0),
+            extent in (0.0f64..1.0, 0.0f64..1.0),
+            size in 2usize..24,
+            seed in 0u64..1000,
+        ) {
+            let x = (corner.0 * (width - 1) as f64) as usize;
+            let y = (corner.1 * (height - 1) as f64) as usize;
+            let w = 1 + (extent.0 * (width - x - 1) as f64) as usize;
+            let h = 1 + (extent.1 * (height - y - 1) as f64) as usize;
+            let rgb: Vec<u8> = (0..width * height * 3)
+                .map(|i| ((i as u64 * 2_654_435_761 + seed) % 251) as u8)
+                .collect();
+            let mut mask = vec![0u8; width * height];
+            for row in y..y + h {
+                for col in x..x + w {
+                    mask[row * width + col] = 1;
+                }
+            }
+            let options = CropOptions::new(size);
+            let image_box = ImageBox { x: x as f64, y: y as f64, width: w as f64, height: h as f64 };
+            let (from_box, square) = crop_in_box(&rgb, &image_box, width, height, &options).unwrap();
+            proptest::prop_assert_eq!(square, crop_box(&mask, width, height, &options).unwrap());
+            proptest::prop_assert_eq!(from_box, crop_object(&rgb, &mask, width, height, &options).unwrap());
+            proptest::prop_assert_eq!(ImageBox::around(&mask, width), Some(image_box));
+        }
+    }
+
+    #[test]
+    fn boxes_follow_bop_and_bad_ones_are_refused() {
+        // BOP's `w` and `h` are the last pixel's offsets: [3, 4, 0, 0] is the pixel (3, 4).
+        let one = ImageBox::from_bop([3, 4, 0, 0]).unwrap();
+        let mask = one.mask(8, 8);
+        assert_eq!(mask.iter().map(|&m| usize::from(m)).sum::<usize>(), 1);
+        assert_eq!(mask[4 * 8 + 3], 1);
+        assert_eq!(ImageBox::from_bop([-1, -1, -1, -1]), None);
+        let problem = |x, y, width, height| {
+            ImageBox {
+                x,
+                y,
+                width,
+                height,
+            }
+            .problem(640, 480)
+        };
+        assert_eq!(problem(0.0, 0.0, 640.0, 480.0), None);
+        for (bad, words) in [
+            ((10.0, 10.0, 0.0, 5.0), "empty"),
+            ((10.0, 10.0, -4.0, 5.0), "negative"),
+            ((-1.0, 10.0, 20.0, 5.0), "outside"),
+            ((630.0, 10.0, 20.0, 5.0), "outside"),
+            ((10.0, 10.0, f64::NAN, 5.0), "finite"),
+        ] {
+            let reason = problem(bad.0, bad.1, bad.2, bad.3).unwrap();
+            assert!(reason.contains(words), "{bad:?}: {reason}");
+        }
+        let rgb = vec![0u8; 640 * 480 * 3];
+        let outside = ImageBox {
+            x: 700.0,
+            y: 0.0,
+            width: 10.0,
+            height: 10.0,
+        };
+        assert!(matches!(
+            crop_in_box(&rgb, &outside, 640, 480, &CropOptions::new(8)),
+            Err(ModelError::InvalidOption { name: "box", .. })
+        ));
     }
 
     #[test]

@@ -11,7 +11,7 @@
 //!
 //! What both share lives at the root: the network's configuration ([`ModelConfig`]: encoders
 //! with torchvision names — ResNet-18, ResNet-18 cut after stage 3, ConvNeXt-Tiny, a small CNN —
-//! and [`load_backbone`] for pretrained `.safetensors`), crops ([`crop_object`], [`CropBox`]),
+//! and [`load_backbone`] for pretrained `.safetensors`), crops ([`crop_object`] around a mask, [`crop_in_box`] in a detector's [`ImageBox`], [`CropBox`]),
 //! augmentation, the optimiser ([`LearningRateSchedule`], [`StepReport`]), the epoch loop
 //! ([`fit`]: validation LLH, `train_log.csv`, checkpoints that resume), checkpoints
 //! ([`CheckpointInfo`]: `.safetensors` + JSON, atomic), best-first refinement of a cell
@@ -100,7 +100,9 @@ pub mod translation;
 pub use augment::{Augmentation, augment};
 pub use checkpoint::{CHECKPOINT_FILE, CheckpointInfo};
 pub use config::ModelConfig;
-pub use crop::{CropBox, CropOptions, crop_box, crop_object, crops_to_tensor};
+pub use crop::{
+    CropBox, CropOptions, ImageBox, crop_box, crop_in_box, crop_object, crops_to_tensor,
+};
 pub use cuda::{default_device, load_cuda_backend};
 pub use encoder::EncoderKind;
 pub use error::ModelError;

@@ -53,10 +53,20 @@ pub fn rotation_from_matrix(row_major: &[f64; 9]) -> Result<UnitQuaternion<f64>,
     } else {
         nearest_rotation(&m)
     };
-    Ok(UnitQuaternion::from_rotation_matrix(
-        &Rotation3::from_matrix_unchecked(rotation),
-    ))
+    let quaternion =
+        UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(rotation));
+    // A matrix stored with 6–8 digits gives a quaternion of norm 1 ± 1e-5: normalised, as its
+    // type promises. Matrices as exact as f64 keep their bits.
+    Ok(if (quaternion.norm() - 1.0).abs() > UNIT_NORM_TOLERANCE {
+        UnitQuaternion::new_normalize(quaternion.into_inner())
+    } else {
+        quaternion
+    })
 }
+
+/// How far from 1 the norm of [`rotation_from_matrix`]'s quaternion may be before it is
+/// normalised.
+const UNIT_NORM_TOLERANCE: f64 = 1e-12;
 
 /// The largest absolute entry of `RᵀR − I` for a row-major 3×3 matrix `R`.
 pub fn orthogonality_error(row_major: &[f64; 9]) -> f64 {
@@ -156,6 +166,18 @@ mod tests {
         let q = rotation_from_axis_angle(&Vector3::z(), 1e-9).unwrap();
         let d = geodesic_distance(&UnitQuaternion::identity(), &q);
         assert!((d - 1e-9).abs() < 1e-15, "{d}");
+    }
+
+    proptest! {
+        /// A rotation stored with 6 significant digits (BOP files, |RᵀR − I| up to ~1e-5 and
+        /// converted directly) still gives a unit quaternion, as training's checks ask (1e-6).
+        #[test]
+        fn rotations_stored_with_few_digits_give_unit_quaternions(q in any_rotation()) {
+            let stored = rotation_to_matrix(&q).map(|v| format!("{v:.6}").parse::<f64>().unwrap());
+            let back = rotation_from_matrix(&stored).unwrap();
+            prop_assert!((back.norm() - 1.0).abs() <= 1e-12, "{}", back.norm());
+            prop_assert!(geodesic_distance(&q, &back) < 1e-5);
+        }
     }
 
     proptest! {

@@ -75,6 +75,7 @@ pub use progress::Progress;
 pub use pseudo_gt::{PseudoInstance, PseudoLabel, read_pseudo_gt, write_pseudo_gt};
 pub use recorded::{as_recorded, check_recorded};
 pub use scene::{
-    GtInfo, GtInstance, read_object_ids, read_scene_camera, read_scene_gt, read_scene_gt_info,
-    write_scene_camera, write_scene_gt, write_scene_gt_info,
+    GtInfo, GtInstance, RotationRepairs, read_object_ids, read_scene_camera, read_scene_gt,
+    read_scene_gt_info, read_scene_gt_repaired, write_scene_camera, write_scene_gt,
+    write_scene_gt_info,
 };

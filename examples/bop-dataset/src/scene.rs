@@ -3,6 +3,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use nalgebra::Isometry3;
+use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 
 use crate::FileError;
@@ -87,24 +88,86 @@ fn instance_lists<'a>(
         .collect()
 }
 
-/// Reads `scene_gt.json`: image id → its instances in mask order.
+/// Reads `scene_gt.json`: image id → its instances in mask order. Rotations orthonormal only to
+/// published precision are read as their nearest rotations
+/// ([`so3_grid::rotation_from_matrix`]); [`read_scene_gt_repaired`] counts them.
 pub fn read_scene_gt(path: &Path) -> Result<BTreeMap<u32, Vec<GtInstance>>, FileError> {
+    Ok(read_scene_gt_repaired(path)?.0)
+}
+
+/// The rotations of pose files that were orthonormal only to published precision (beyond
+/// [`so3_grid::ORTHONORMALITY_TOLERANCE`]) and were read as their nearest rotations.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct RotationRepairs {
+    /// Rotations repaired.
+    pub count: usize,
+    /// The largest |RᵀR − I| entry among them.
+    pub worst_orthogonality_error: f64,
+    /// The file and field of the worst one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub worst_at: Option<String>,
+}
+
+impl RotationRepairs {
+    /// Adds the repairs of `other` (another file).
+    pub fn merge(&mut self, other: &Self) {
+        self.count += other.count;
+        if other.worst_orthogonality_error > self.worst_orthogonality_error {
+            self.worst_orthogonality_error = other.worst_orthogonality_error;
+            self.worst_at.clone_from(&other.worst_at);
+        }
+    }
+
+    /// One line saying what was repaired, `None` when nothing was.
+    pub fn note(&self) -> Option<String> {
+        (self.count > 0).then(|| {
+            format!(
+                "{} ground-truth rotation(s) orthonormal only to |RᵀR − I| ≤ {:.1e} (worst: {}) \
+                 read as their nearest rotations",
+                self.count,
+                self.worst_orthogonality_error,
+                self.worst_at.as_deref().unwrap_or("?")
+            )
+        })
+    }
+
+    fn add(&mut self, error: f64, at: String) {
+        if error > so3_grid::ORTHONORMALITY_TOLERANCE {
+            self.merge(&Self {
+                count: 1,
+                worst_orthogonality_error: error,
+                worst_at: Some(at),
+            });
+        }
+    }
+}
+
+/// [`read_scene_gt`], and the rotations it read as their nearest rotations.
+pub fn read_scene_gt_repaired(
+    path: &Path,
+) -> Result<(BTreeMap<u32, Vec<GtInstance>>, RotationRepairs), FileError> {
     let value = read_json(path)?;
-    instance_lists(&value, path)?
+    let mut repairs = RotationRepairs::default();
+    let gt = instance_lists(&value, path)?
         .into_iter()
         .map(|(im_id, items)| {
             let instances = items
                 .into_iter()
                 .map(|(prefix, item)| {
+                    let pose = pose_from_json(item, path, &prefix)?;
+                    let matrix: [f64; 9] = numbers_at(item, "cam_R_m2c", path, &prefix)?;
+                    let at = format!("{}: {prefix}cam_R_m2c", path.display());
+                    repairs.add(so3_grid::orthogonality_error(&matrix), at);
                     Ok(GtInstance {
                         obj_id: id_at(item, "obj_id", path, &prefix)?,
-                        pose: pose_from_json(item, path, &prefix)?,
+                        pose,
                     })
                 })
                 .collect::<Result<_, FileError>>()?;
             Ok((im_id, instances))
         })
-        .collect()
+        .collect::<Result<_, FileError>>()?;
+    Ok((gt, repairs))
 }
 
 /// Reads only the `obj_id` of every instance of `scene_gt.json` (the labelling never reads

@@ -7,10 +7,10 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use bop_dataset::{
-    BopDataset, GtInfo, GtInstance, Intrinsics, ModelInfo, PseudoInstance, PseudoLabel, read_depth,
-    read_mask, read_models_info, read_object_ids, read_pseudo_gt, read_rgb, read_scene_camera,
-    read_scene_gt, read_scene_gt_info, write_models_info, write_pseudo_gt, write_scene_camera,
-    write_scene_gt, write_scene_gt_info,
+    BopDataset, GtInfo, GtInstance, Intrinsics, ModelInfo, PseudoInstance, PseudoLabel,
+    RotationRepairs, read_depth, read_mask, read_models_info, read_object_ids, read_pseudo_gt,
+    read_rgb, read_scene_camera, read_scene_gt, read_scene_gt_info, read_scene_gt_repaired,
+    write_models_info, write_pseudo_gt, write_scene_camera, write_scene_gt, write_scene_gt_info,
 };
 use nalgebra::{Isometry3, Translation3};
 
@@ -273,6 +273,24 @@ fn malformed_files_name_the_file_and_the_key() {
         .rotation
         .angle_to(&nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.0, 0.6));
     assert!(angle < 1e-12, "{angle}");
+    // The repair is counted: |RᵀR − I| of the scaled matrix is 1.005² − 1 on the diagonal.
+    let (_, repairs) = read_scene_gt_repaired(&path).unwrap();
+    assert_eq!(repairs.count, 1);
+    assert!((repairs.worst_orthogonality_error - (1.005f64.powi(2) - 1.0)).abs() < 1e-12);
+    assert!(
+        repairs
+            .worst_at
+            .unwrap()
+            .ends_with("published.json: 0[0].cam_R_m2c")
+    );
+    let exact = write(
+        "exact.json",
+        r#"{"0": [{"obj_id": 1, "cam_R_m2c": [0, -1, 0, 1, 0, 0, 0, 0, 1], "cam_t_m2c": [0, 0, 700]}]}"#,
+    );
+    assert_eq!(
+        read_scene_gt_repaired(&exact).unwrap().1,
+        RotationRepairs::default()
+    );
     let path = write(
         "garbled.json",
         &format!(

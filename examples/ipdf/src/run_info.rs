@@ -6,6 +6,8 @@ use serde::{Deserialize, Serialize};
 
 use bop_dataset::{BopDataset, FileError, write_json};
 
+use crate::training_data::CropSource;
+
 /// The name of the file in a run folder.
 pub const RUN_FILE: &str = "run.json";
 
@@ -30,6 +32,13 @@ pub struct RunInfo {
     pub object: String,
     /// Whether occlusion augmentation was on.
     pub occlusion: bool,
+    /// What the crops were cut around (absent in runs on masks).
+    #[serde(default, skip_serializing_if = "is_mask")]
+    pub crop: CropSource,
+}
+
+fn is_mask(crop: &CropSource) -> bool {
+    *crop == CropSource::Mask
 }
 
 fn default_models_dir() -> String {

@@ -19,7 +19,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::Error;
 use crate::run_info::RunInfo;
-use crate::training_data::{ExampleOptions, Examples, LabelSource, choose_object, load_examples};
+use crate::training_data::{
+    CropSource, ExampleOptions, Examples, LabelSource, choose_object, load_examples,
+};
 
 /// Which distribution a model learns.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -83,6 +85,9 @@ pub struct TrainRequest {
     pub learning_rate: f64,
     /// The paper's occlusion augmentation, else colour augmentation only.
     pub occlusion: bool,
+    /// What the crops are cut around: masks, or boxes (jittered at training, as a detector's
+    /// boxes are imprecise; the validation crops in the boxes as they are).
+    pub crop: CropSource,
     /// Query rotations per image and step: the rotated grid of this level.
     pub query_level: u8,
     /// Query translations per image and step (translation models).
@@ -167,8 +172,16 @@ pub fn train_model(request: &TrainRequest, progress: &dyn Progress) -> Result<Tr
         input_size: request.model.input_size as usize,
         min_visible_fraction: 0.1,
         continuous_steps: request.continuous_steps,
+        crop: request.crop,
+        box_jitter: None,
     };
-    let train = load_examples(&dataset, &examples(&request.split, request.labels))?;
+    let train = load_examples(
+        &dataset,
+        &ExampleOptions {
+            box_jitter: (request.crop == CropSource::Box).then_some(request.seed),
+            ..examples(&request.split, request.labels)
+        },
+    )?;
     let validation = validation_examples(&dataset, request, &examples)?;
     let info = RunInfo {
         dataset: std::path::absolute(&request.dataset)
@@ -180,6 +193,7 @@ pub fn train_model(request: &TrainRequest, progress: &dyn Progress) -> Result<Tr
         obj_id,
         object: object.clone(),
         occlusion: request.occlusion,
+        crop: request.crop,
     };
     let (step, reports) = match request.target {
         Target::Rotation => {

@@ -1,5 +1,6 @@
 //! Training and evaluation data from a BOP split: for every visible instance of one object, a
-//! square RGB crop around its visible mask (`ipdf_model::crop_object`, background black), where
+//! square RGB crop around its visible mask (`ipdf_model::crop_object`, background black) or in
+//! its visible box (`bbox_visib`, as a detector gives it: `ipdf_model::crop_in_box`), where
 //! the crop came from (its box, the image's intrinsics from `scene_camera.json`), and its
 //! rotation and translation label sets: the ground-truth pose alone (`single`), the pose
 //! expanded by the object's symmetries from `models_info.json` (`analytical`), or the pseudo
@@ -9,14 +10,17 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use ipdf_model::translation::{CameraIntrinsics, CropGeometry};
-use ipdf_model::{CropBox, CropOptions, crop_box, crop_object};
+use ipdf_model::{CropBox, CropOptions, ImageBox, crop_box, crop_in_box, crop_object};
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
+use rand::{RngExt, SeedableRng};
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 use tch::{Kind, Tensor};
 
 use bop_dataset::{
-    BopDataset, FileError, GtInstance, Intrinsics, PseudoInstance, SceneDir, read_models_info,
-    read_pseudo_gt, read_scene_camera, read_scene_gt, read_scene_gt_info,
+    BopDataset, FileError, GtInfo, GtInstance, Intrinsics, PseudoInstance, RotationRepairs,
+    SceneDir, read_models_info, read_pseudo_gt, read_scene_camera, read_scene_gt_info,
+    read_scene_gt_repaired,
 };
 use ipdf_metrics::{CONTINUOUS_STEPS, SymmetryGroup};
 
@@ -47,6 +51,39 @@ impl LabelSource {
     pub const ALL: [Self; 3] = [Self::Single, Self::Analytical, Self::Pseudo];
 }
 
+/// What a crop is cut around.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CropSource {
+    /// The visible mask (`mask_visib/`), everything off it black.
+    #[default]
+    Mask,
+    /// The visible box, as a detector gives it: `bbox_visib` of `scene_gt_info.json`, else the
+    /// visible mask's bounding box; everything inside it kept, the margin around it black.
+    Box,
+    /// Masks where the split has them, else boxes.
+    Auto,
+}
+
+impl CropSource {
+    /// `mask`, `box` or `auto`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Mask => "mask",
+            Self::Box => "box",
+            Self::Auto => "auto",
+        }
+    }
+
+    /// Every source.
+    pub const ALL: [Self; 3] = [Self::Mask, Self::Box, Self::Auto];
+}
+
+/// How far a jittered box ([`ExampleOptions::box_jitter`]) moves: its centre by up to this
+/// fraction of its width and height, each side scaled by up to this fraction — the error of a
+/// good detector's box (IoU with the true box about 0.7 or better).
+pub const BOX_JITTER: f64 = 0.1;
+
 /// Which instances become examples, and how.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ExampleOptions {
@@ -63,6 +100,12 @@ pub struct ExampleOptions {
     /// Steps per turn of a continuous symmetry in `analytical` label sets (the ground-truth
     /// sets of evaluation always use 200, as the paper).
     pub continuous_steps: usize,
+    /// What each crop is cut around.
+    pub crop: CropSource,
+    /// With a seed, box crops are cut from boxes moved at random by up to [`BOX_JITTER`]
+    /// (the same boxes for the same seed), so that a model trained on them takes a detector's
+    /// imprecise boxes.
+    pub box_jitter: Option<u64>,
 }
 
 impl ExampleOptions {
@@ -77,6 +120,8 @@ impl ExampleOptions {
             input_size,
             min_visible_fraction: 0.1,
             continuous_steps: 1,
+            crop: CropSource::Auto,
+            box_jitter: None,
         }
     }
 }
@@ -111,6 +156,10 @@ pub struct Examples {
     pub truth_poses: Option<Vec<Isometry3<f64>>>,
     /// Where each crop comes from.
     pub instances: Vec<InstanceRef>,
+    /// Each instance's visible fraction (`visib_fract` of `scene_gt_info.json`), where known.
+    pub visible_fractions: Vec<Option<f64>>,
+    /// Ground-truth rotations read as their nearest rotations.
+    pub repairs: RotationRepairs,
 }
 
 /// One instance to crop, before its images are read.
@@ -121,6 +170,8 @@ struct Pending {
     intrinsics: Intrinsics,
     truth: Option<Vec<UnitQuaternion<f64>>>,
     truth_pose: Option<Isometry3<f64>>,
+    /// Its `scene_gt_info.json` entry, and where it is (the file, the key prefix `3[0].`).
+    info: Option<(GtInfo, PathBuf, String)>,
 }
 
 /// The examples of `options.obj_id` in `options.split` of `dataset`. Pseudo labels missing
@@ -138,9 +189,15 @@ pub fn load_examples(dataset: &BopDataset, options: &ExampleOptions) -> Result<E
                 "no such object",
             )
         })?;
-    let mut pending = Vec::new();
+    let (mut pending, mut repairs) = (Vec::new(), RotationRepairs::default());
     for scene_id in dataset.scene_ids(&options.split)? {
-        pending.extend(scene_instances(dataset, scene_id, options, &group)?);
+        pending.extend(scene_instances(
+            dataset,
+            scene_id,
+            options,
+            &group,
+            &mut repairs,
+        )?);
     }
     let place = format!(
         "object {} in split {:?} of {}",
@@ -155,7 +212,7 @@ pub fn load_examples(dataset: &BopDataset, options: &ExampleOptions) -> Result<E
     let (pending, crops): (Vec<Pending>, Vec<FileCrop>) =
         crop_instances(dataset, options, pending)?;
     if pending.is_empty() {
-        let reason = format!("every instance of {place} has an empty visible mask");
+        let reason = format!("every instance of {place} has an empty visible mask or box");
         return Err(Error::option("dataset", reason));
     }
     let size = options.input_size as i64;
@@ -177,21 +234,33 @@ pub fn load_examples(dataset: &BopDataset, options: &ExampleOptions) -> Result<E
         translation_sets: pending.iter().map(|p| p.translations.clone()).collect(),
         geometry,
         instances: pending.iter().map(|p| p.at).collect(),
+        visible_fractions: pending
+            .iter()
+            .map(|p| p.info.as_ref().map(|(info, ..)| info.visib_fract))
+            .collect(),
+        repairs,
     })
 }
 
-/// The instances of `options.obj_id` in scene `scene_id` with a label set, visible enough.
+/// The instances of `options.obj_id` in scene `scene_id` with a label set, visible enough;
+/// the ground truth's repaired rotations are added to `repairs`.
 fn scene_instances(
     dataset: &BopDataset,
     scene_id: u32,
     options: &ExampleOptions,
     group: &SymmetryGroup,
+    repairs: &mut RotationRepairs,
 ) -> Result<Vec<Pending>, Error> {
     let scene = dataset.scene(&options.split, scene_id);
     let optional = |path: PathBuf| path.exists().then_some(path);
-    let gt = optional(scene.gt_path())
-        .map(|p| read_scene_gt(&p))
-        .transpose()?;
+    let gt = match optional(scene.gt_path()) {
+        Some(path) => {
+            let (gt, repaired) = read_scene_gt_repaired(&path)?;
+            repairs.merge(&repaired);
+            Some(gt)
+        }
+        None => None,
+    };
     let visible = optional(scene.gt_info_path())
         .map(|p| read_scene_gt_info(&p))
         .transpose()?;
@@ -207,10 +276,11 @@ fn scene_instances(
     let mut out = Vec::new();
     for (im_id, ids) in object_ids {
         for (instance, &obj_id) in ids.iter().enumerate() {
-            let fraction = visible
+            let info = visible
                 .as_ref()
                 .and_then(|v| v.get(&im_id)?.get(instance))
-                .map_or(1.0, |info| info.visib_fract);
+                .map(|info| (*info, scene.gt_info_path(), format!("{im_id}[{instance}].")));
+            let fraction = info.as_ref().map_or(1.0, |(info, ..)| info.visib_fract);
             if obj_id != options.obj_id || fraction < options.min_visible_fraction {
                 continue;
             }
@@ -239,6 +309,7 @@ fn scene_instances(
                 truth: truth.map(|t| turned(&t.pose.rotation, &truth_symmetries)),
                 truth_pose: truth
                     .map(|t| Isometry3::from_parts(millimetres(&t.pose).into(), t.pose.rotation)),
+                info,
             });
         }
     }
@@ -327,7 +398,7 @@ fn read_scene_pseudo_gt(
     read_pseudo_gt(&path)
 }
 
-/// The crops of `pending`, in parallel; an instance whose visible mask is empty (fully
+/// The crops of `pending`, in parallel; an instance whose visible mask or box is empty (fully
 /// occluded: BOP keeps them, with `visib_fract` 0) is left out, like one below the visible
 /// fraction.
 fn crop_instances(
@@ -337,24 +408,91 @@ fn crop_instances(
 ) -> Result<(Vec<Pending>, Vec<FileCrop>), Error> {
     let crops: Vec<Option<FileCrop>> = pending
         .par_iter()
-        .map(|p| {
-            let scene = dataset.scene(&options.split, p.at.scene_id);
-            match crop_files(
-                &scene.rgb_path(p.at.im_id),
-                &scene.visible_mask_path(p.at.im_id, p.at.instance),
-                options.input_size,
-            ) {
-                Ok(crop) => Ok(Some(crop)),
-                Err(CropError::EmptyMask(_)) => Ok(None),
-                Err(CropError::Failed(error)) => Err(error),
-            }
-        })
+        .map(|p| crop_instance(dataset, options, p))
         .collect::<Result<_, Error>>()?;
     Ok(pending
         .into_iter()
         .zip(crops)
         .filter_map(|(p, crop)| Some((p, crop?)))
         .unzip())
+}
+
+/// The crop of one instance as `options.crop` asks; `None` when its mask or box is empty.
+fn crop_instance(
+    dataset: &BopDataset,
+    options: &ExampleOptions,
+    p: &Pending,
+) -> Result<Option<FileCrop>, Error> {
+    let scene = dataset.scene(&options.split, p.at.scene_id);
+    let rgb = scene.rgb_path(p.at.im_id);
+    let mask = scene.visible_mask_path(p.at.im_id, p.at.instance);
+    let use_mask = match options.crop {
+        CropSource::Mask => true,
+        CropSource::Box => false,
+        CropSource::Auto => mask.exists(),
+    };
+    let crop = if use_mask {
+        crop_files(&rgb, &mask, options.input_size)
+    } else {
+        let Some((image_box, (file, field))) = instance_box(p, &mask)? else {
+            return Ok(None);
+        };
+        let image_box = match options.box_jitter {
+            Some(seed) => jittered(&image_box, seed, &p.at),
+            None => image_box,
+        };
+        let clip = options.box_jitter.is_some();
+        crop_file_box(&rgb, &image_box, options.input_size, clip).map_err(|error| match error {
+            CropError::BadBox(reason) => {
+                CropError::Failed(FileError::new(&file, field, reason).into())
+            }
+            error => error,
+        })
+    };
+    match crop {
+        Ok(crop) => Ok(Some(crop)),
+        Err(CropError::EmptyMask(_)) => Ok(None),
+        Err(CropError::Failed(error)) => Err(error),
+        Err(CropError::BadBox(reason)) => Err(Error::option("box", reason)),
+    }
+}
+
+/// A box and the file and field it comes from.
+type PlacedBox = (ImageBox, (PathBuf, String));
+
+/// An instance's visible box and the file and field it comes from: `bbox_visib` of
+/// `scene_gt_info.json`, else the bounding box of its visible mask; `None` when empty.
+fn instance_box(p: &Pending, mask: &Path) -> Result<Option<PlacedBox>, Error> {
+    if let Some((info, file, prefix)) = &p.info {
+        let at = (file.clone(), format!("{prefix}bbox_visib"));
+        return Ok(ImageBox::from_bop(info.bbox_visib).map(|b| (b, at)));
+    }
+    if !mask.exists() {
+        let reason = "missing: a box crop needs the instance's bbox_visib (scene_gt_info.json) \
+                      or its visible mask";
+        return Err(FileError::new(mask, "file", reason).into());
+    }
+    let visible = bop_dataset::read_mask(mask)?;
+    let pixels: Vec<u8> = visible.pixels.iter().map(|&m| u8::from(m)).collect();
+    let at = (mask.to_path_buf(), "mask".to_string());
+    Ok(ImageBox::around(&pixels, visible.width as usize).map(|b| (b, at)))
+}
+
+/// `image_box` moved at random by up to [`BOX_JITTER`] (centre and size), the same for the same
+/// seed and instance (a box pushed past the image's edge is clipped by [`crop_file_box`]).
+fn jittered(image_box: &ImageBox, seed: u64, at: &InstanceRef) -> ImageBox {
+    let key = (u64::from(at.scene_id) << 40) ^ (u64::from(at.im_id) << 16) ^ at.instance as u64;
+    let mut rng =
+        rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ key.wrapping_mul(0x9E37_79B9_7F4A_7C15));
+    let mut unit = || rng.random_range(-BOX_JITTER..=BOX_JITTER);
+    let (dx, dy, sw, sh) = (unit(), unit(), unit(), unit());
+    let (width, height) = (image_box.width * (1.0 + sw), image_box.height * (1.0 + sh));
+    ImageBox {
+        x: image_box.x + image_box.width * (0.5 + dx) - width / 2.0,
+        y: image_box.y + image_box.height * (0.5 + dy) - height / 2.0,
+        width,
+        height,
+    }
 }
 
 /// The object a run is for: `obj_id` or the object named `name` (`dataset_info.json`), or the
@@ -400,6 +538,9 @@ pub enum CropError {
     /// The mask file selects no pixel (e.g. a fully occluded instance).
     #[error("{}: mask: the object mask is empty", .0.display())]
     EmptyMask(PathBuf),
+    /// A box that cannot be cropped from the image: empty, negative or outside it.
+    #[error("{0}")]
+    BadBox(String),
     /// Unreadable images, mismatched sizes or a bad crop size.
     #[error(transparent)]
     Failed(#[from] Error),
@@ -412,6 +553,7 @@ impl From<CropError> for Error {
             CropError::EmptyMask(path) => {
                 FileError::new(&path, "mask", "the object mask is empty").into()
             }
+            CropError::BadBox(reason) => Self::option("box", reason),
         }
     }
 }
@@ -471,6 +613,47 @@ pub fn crop_files(rgb: &Path, mask: &Path, size: usize) -> Result<FileCrop, Crop
     })
 }
 
+/// The 8-bit `[3, size, size]` crop (channel-major) of the colour image at `rgb` in
+/// `image_box` (`ipdf_model::crop_in_box`: the crop of the mask that fills the box), with its
+/// square. With `clip`, a box reaching past the image is clipped to it first. A box that is
+/// empty, negative or outside the image is [`CropError::BadBox`].
+pub fn crop_file_box(
+    rgb: &Path,
+    image_box: &ImageBox,
+    size: usize,
+    clip: bool,
+) -> Result<FileCrop, CropError> {
+    let colour = bop_dataset::read_rgb(rgb).map_err(Error::from)?;
+    let (width, height) = (colour.width as usize, colour.height as usize);
+    let image_box = &if clip {
+        image_box.clipped(width, height)
+    } else {
+        *image_box
+    };
+    if let Some(reason) = image_box.problem(width, height) {
+        return Err(CropError::BadBox(reason));
+    }
+    let options = CropOptions::new(size);
+    let (values, crop_box) = crop_in_box(
+        colour.pixels.as_flattened(),
+        image_box,
+        width,
+        height,
+        &options,
+    )
+    .map_err(Error::from)?;
+    Ok(FileCrop {
+        pixels: to_bytes(&values),
+        crop_box,
+        width,
+        height,
+    })
+}
+
+fn to_bytes(values: &[f32]) -> Vec<u8> {
+    values.iter().map(|v| (v * 255.0).round() as u8).collect()
+}
+
 /// The 8-bit `[3, size, size]` crop (`ipdf_model::crop_object`) of a row-major RGB image
 /// around the true pixels of `mask`, with its box.
 fn crop_bytes(
@@ -484,7 +667,7 @@ fn crop_bytes(
     let options = CropOptions::new(size);
     let values = crop_object(rgb, &mask, width, height, &options)?;
     Ok(FileCrop {
-        pixels: values.iter().map(|v| (v * 255.0).round() as u8).collect(),
+        pixels: to_bytes(&values),
         crop_box: crop_box(&mask, width, height, &options)?,
         width,
         height,
@@ -512,7 +695,6 @@ pub fn rendered_examples(
     size: usize,
     seed: u64,
 ) -> Result<Examples, Error> {
-    use rand::SeedableRng;
     let renderer = synth_data::FrameRenderer::new(&object.mesh)?;
     let camera = synth_data::SynthOptions::t_less_camera().camera;
     let style = synth_data::FrameStyle {
@@ -565,5 +747,7 @@ pub fn rendered_examples(
         truth_sets: Some(sets),
         truth_poses: Some(poses),
         instances,
+        visible_fractions: vec![None; count],
+        repairs: RotationRepairs::default(),
     })
 }

@@ -6,7 +6,8 @@ mod common;
 use std::path::Path;
 
 use common::{
-    BRIEF_TRAINING, assert_fails, ipdf_json, predict_args, read_json, s, synth, train_single,
+    BRIEF_TRAINING, SMALL_NETWORK, assert_fails, ipdf_json, predict_args, read_json, s, synth,
+    train_single,
 };
 use serde_json::Value;
 
@@ -40,14 +41,7 @@ fn pose_runs_train_score_and_predict_translations() {
     // The box's single labels: every training command below starts so.
     let box_run = train_single(&data, "box");
     // The network of every run here (a run folder is refused for another one).
-    let network = [
-        "--encoder",
-        "small-cnn",
-        "--input-size",
-        "32",
-        "--head",
-        "16,16",
-    ];
+    let network = SMALL_NETWORK;
     let train = |target: &str, out: &Path| {
         let mut words = box_run.to_vec();
         words.extend(["--target", target, "--out", s(out)]);

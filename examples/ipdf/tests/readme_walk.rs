@@ -3,8 +3,8 @@
 //! this test keeps the two from drifting apart.
 //!
 //! Each block is split into commands (comments dropped, `\` continuations joined) and run with
-//! `bash` in a fresh folder where `target/release/ipdf` is this build's binary and `tless` a
-//! copy of the T-LESS layout fixture. Only sizes are shrunk ([`MINIATURE`]); every flag, path
+//! `bash` in a fresh folder where `target/release/ipdf` is this build's binary, `tless` a
+//! copy of the T-LESS layout fixture and `lmo` one of the real LM-O frame. Only sizes are shrunk ([`MINIATURE`]); every flag, path
 //! and file the guide names is used as written.
 mod common;
 
@@ -83,6 +83,10 @@ fn the_readme_commands_run_in_order() {
         &root.join("examples/bop-dataset/tests/data/tless_layout"),
         &dir.path().join("tless"),
     );
+    copy_dir(
+        &root.join("examples/ipdf/tests/data/lmo_real"),
+        &dir.path().join("lmo"),
+    );
     for command in &commands {
         let small = miniature(command);
         let out = Command::new("bash")
@@ -113,6 +117,9 @@ fn the_readme_commands_run_in_order() {
         "box.png",
         "box_curves.png",
         "tless_obj1.json",
+        "lmo_eval.json",
+        "lmo_eval.md",
+        "lmo_pred.npy",
     ] {
         assert!(dir.path().join(file).is_file(), "{file} was not written");
     }

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use bop_dataset::BopDataset;
 use common::{copy_dir, s};
-use ipdf::training_data::{ExampleOptions, LabelSource, load_examples};
+use ipdf::training_data::{CropSource, ExampleOptions, LabelSource, load_examples};
 
 /// The fixture's folder, in the crate that owns it (`examples/bop-dataset`).
 const FIXTURE: &str = "../bop-dataset/tests/data/tless_layout";
@@ -34,6 +34,8 @@ fn without_mask_visib_the_full_masks_serve_and_fully_occluded_instances_are_left
         input_size: 32,
         min_visible_fraction: 0.0,
         continuous_steps: 1,
+        crop: CropSource::Mask,
+        box_jitter: None,
     };
     let both = load_examples(&dataset, &options).unwrap();
     assert_eq!(both.instances.len(), 2);

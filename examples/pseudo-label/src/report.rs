@@ -7,8 +7,9 @@ use std::collections::BTreeMap;
 use std::io::Write;
 
 use bop_dataset::{
-    BopDataset, FileError, GtInstance, ModelInfo, PseudoInstance, SceneDir, read_models_info,
-    read_pseudo_gt, read_scene_gt, read_scene_gt_info, write_atomically, write_json,
+    BopDataset, FileError, GtInstance, ModelInfo, PseudoInstance, RotationRepairs, SceneDir,
+    read_models_info, read_pseudo_gt, read_scene_gt_info, read_scene_gt_repaired, write_atomically,
+    write_json,
 };
 use ipdf_metrics::SymmetryGroup;
 
@@ -92,6 +93,14 @@ pub struct LabelReport {
     pub variant: String,
     /// Per object, by its name (`dataset_info.json`) or `obj_NNNNNN`.
     pub objects: BTreeMap<String, ObjectLabelScores>,
+    /// Ground-truth rotations orthonormal only to published precision, read as their nearest
+    /// rotations (absent when none were).
+    #[serde(default, skip_serializing_if = "no_repairs")]
+    pub repaired_rotations: RotationRepairs,
+}
+
+fn no_repairs(repairs: &RotationRepairs) -> bool {
+    repairs.count == 0
 }
 
 impl LabelReport {
@@ -170,12 +179,13 @@ pub fn report(
 ) -> Result<LabelReport, LabelError> {
     let models = read_models_info(&dataset.models_info_path())?;
     let mut sums: BTreeMap<u32, ObjectSums> = BTreeMap::new();
+    let mut repairs = RotationRepairs::default();
     for scene_id in dataset.scene_ids(split)? {
         let scene = dataset.scene(split, scene_id);
         if !scene.pseudo_gt_path().exists() || !scene.gt_path().exists() {
             continue;
         }
-        score_scene(&scene, &models, &mut sums)?;
+        repairs.merge(&score_scene(&scene, &models, &mut sums)?);
     }
     let objects = sums
         .into_iter()
@@ -190,17 +200,19 @@ pub fn report(
     Ok(LabelReport {
         variant: variant.to_string(),
         objects,
+        repaired_rotations: repairs,
     })
 }
 
 /// Adds the instances of `scene` that have both a pseudo-label entry and a ground-truth pose
-/// to the sums of their objects; an error when the two name different objects.
+/// to the sums of their objects; an error when the two name different objects. Returns the
+/// ground-truth rotations read as their nearest rotations.
 fn score_scene(
     scene: &SceneDir,
     models: &BTreeMap<u32, ModelInfo>,
     sums: &mut BTreeMap<u32, ObjectSums>,
-) -> Result<(), LabelError> {
-    let gt = read_scene_gt(&scene.gt_path())?;
+) -> Result<RotationRepairs, LabelError> {
+    let (gt, repairs) = read_scene_gt_repaired(&scene.gt_path())?;
     let pseudo = read_pseudo_gt(&scene.pseudo_gt_path())?;
     let info = if scene.gt_info_path().exists() {
         Some(read_scene_gt_info(&scene.gt_info_path())?)
@@ -233,7 +245,7 @@ fn score_scene(
                 .add(instance, truth, &group, visible);
         }
     }
-    Ok(())
+    Ok(repairs)
 }
 
 /// One object's scores while its instances come in: counts in `scores`, sums to divide at

@@ -463,10 +463,11 @@ fn reframe<R: Rng>(
     Isometry3::from_parts(Translation3::identity(), turn) * camera_from_world
 }
 
-/// BOP's boxes `[x, y, w, h]` and pixel counts of a frame.
+/// BOP's boxes `[x, y, w, h]` and pixel counts of a frame; `w` and `h` are the last pixel's
+/// offsets from the first, as the BOP toolkit's `calc_2d_bbox` writes them.
 fn gt_info(mask: &[bool], mask_visib: &[bool], depth: &[f32], width: usize) -> GtInfo {
     let bbox = |pixels: &[bool]| match mask_box(pixels, width) {
-        Some([u0, v0, u1, v1]) => [u0, v0, u1 - u0, v1 - v0].map(i64::from),
+        Some([u0, v0, u1, v1]) => [u0, v0, u1 - 1 - u0, v1 - 1 - v0].map(i64::from),
         None => [-1; 4],
     };
     let count = |pixels: &[bool], valid_only: bool| {

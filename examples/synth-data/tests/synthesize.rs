@@ -72,7 +72,7 @@ fn files(root: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
 }
 
 /// The pixels set in a row-major mask `width` wide: `[x, y, w, h]` of their bounding box, as
-/// BOP's `bbox_obj`.
+/// BOP's `bbox_obj` (the BOP toolkit's `calc_2d_bbox`: `w` is the last column minus the first).
 fn bounding_box(mask: &[bool], width: usize) -> [i64; 4] {
     let (mut low, mut high) = ([usize::MAX; 2], [0; 2]);
     for (i, _) in mask.iter().enumerate().filter(|(_, m)| **m) {
@@ -80,7 +80,7 @@ fn bounding_box(mask: &[bool], width: usize) -> [i64; 4] {
         low = [low[0].min(u), low[1].min(v)];
         high = [high[0].max(u), high[1].max(v)];
     }
-    [low[0], low[1], high[0] + 1 - low[0], high[1] + 1 - low[1]].map(|x| x as i64)
+    [low[0], low[1], high[0] - low[0], high[1] - low[1]].map(|x| x as i64)
 }
 
 #[test]

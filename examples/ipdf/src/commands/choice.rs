@@ -39,6 +39,7 @@ named!(
     depth_render::SensorPreset => depth_render::SensorPreset::description,
     pseudo_label::Strategy,
     ipdf::training_data::LabelSource,
+    ipdf::training_data::CropSource,
     ipdf::training::Target,
     ipdf::npy::RotationFormat,
     ipdf::pipeline::Preset,

@@ -1,14 +1,19 @@
 //! `ipdf eval`: LLH, MAAD and Recall MAAD of a trained model on a split with ground truth,
 //! against the full ground-truth symmetry set of each instance; translation LLH and errors of a
 //! translation model; and for a pose run (a rotation model with one in `translation/`) both,
-//! with the joint LLH and the ADD-S AUC.
+//! with the joint LLH and the ADD-S AUC. Rotation and pose runs are scored per instance too, as
+//! real frames are (Acc@15°, Acc@30°, ADD(-S)), in the JSON and a Markdown table beside it.
 use std::path::PathBuf;
 
-use anyhow::Result;
-use bop_dataset::write_json;
+use anyhow::{Result, bail};
+use bop_dataset::{write_atomically, write_json};
+use ipdf::eval::instances::markdown;
 use ipdf::eval::translation::is_translation_run;
-use ipdf::eval::{EvalRequest, evaluate_run, evaluate_translation_run};
+use ipdf::eval::{EvalRequest, MIN_VISIBLE_FRACTION, evaluate_run, evaluate_translation_run};
 use ipdf::progress::bar;
+use ipdf::training_data::CropSource;
+
+use super::choice::choice;
 
 /// Arguments of `ipdf eval`.
 #[derive(Debug, clap::Args)]
@@ -37,21 +42,35 @@ pub struct EvalArgs {
     /// approximates; 21× the queries at level 4, up to level 5).
     #[arg(long)]
     pub dense: bool,
-    /// Write the scores here (JSON).
+    /// What the crops are cut around: the visible masks (`mask_visib/`), the visible boxes
+    /// (`bbox_visib` of `scene_gt_info.json`: a detector's box, everything inside it), or masks
+    /// where the split has them and boxes where not (default for runs trained on masks; runs
+    /// trained with `--crop box` are scored on boxes).
+    #[arg(long, value_parser = choice::<CropSource>())]
+    pub crop: Option<CropSource>,
+    /// Leave out instances less visible than this (`visib_fract` of `scene_gt_info.json`;
+    /// BOP scores from 0.1).
+    #[arg(long, default_value_t = MIN_VISIBLE_FRACTION)]
+    pub min_visib: f64,
+    /// Write the scores here (JSON), each instance's as a Markdown table beside it (`.md`).
     #[arg(long)]
     pub out: Option<PathBuf>,
 }
 
 /// Runs `ipdf eval`; returns its [`EvalResult`].
 pub fn run(args: &EvalArgs) -> Result<serde_json::Value> {
+    if !(0.0..=1.0).contains(&args.min_visib) {
+        bail!("--min-visib {}: a visible fraction, 0 to 1", args.min_visib);
+    }
     let request = EvalRequest {
-        checkpoint: args.checkpoint.clone(),
         dataset: args.dataset.clone(),
         models_dir: args.models_dir.clone(),
         obj_id: args.obj_id,
-        split: args.split.clone(),
-        level: args.level,
         dense: args.dense,
+        crop: args.crop,
+        min_visible_fraction: args.min_visib,
+        per_instance: true,
+        ..EvalRequest::new(args.checkpoint.clone(), &args.split, args.level)
     };
     let progress = bar(0, "images");
     let result = if is_translation_run(&args.checkpoint)? {
@@ -60,6 +79,19 @@ pub fn run(args: &EvalArgs) -> Result<serde_json::Value> {
         let result = evaluate_run(&request, &progress)?;
         if let Some(warning) = &result.warning {
             eprintln!("warning: {warning}");
+        }
+        if let Some(note) = result.repaired_rotations.note() {
+            eprintln!("ipdf eval: {note}");
+        }
+        if let (Some(path), Some(accuracy)) = (&args.out, &result.accuracy) {
+            let what = format!(
+                "{} ({}), split {}, level {}",
+                result.object, result.obj_id, result.split, result.level
+            );
+            let table = markdown(&what, &result.instances, accuracy);
+            write_atomically(&path.with_extension("md"), |out| {
+                std::io::Write::write_all(out, table.as_bytes())
+            })?;
         }
         serde_json::to_value(result)?
     };

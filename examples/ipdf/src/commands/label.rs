@@ -124,6 +124,9 @@ pub fn run(args: &LabelArgs, seed: u64) -> Result<serde_json::Value> {
             ..DatasetInfo::default()
         });
         let scores = report(&dataset, &args.split, &info.names, &info.variant)?;
+        if let Some(note) = scores.repaired_rotations.note() {
+            eprintln!("ipdf label --report: {note}");
+        }
         scores.write(path)?;
         let figure = plot_label_errors(&[(scores.variant.as_str(), &scores)])?;
         write_png(&path.with_extension("png"), &figure)?;

@@ -11,10 +11,10 @@ use ipdf::eval::translation::{
     self, is_translation_run, pose_translation_dir, pose_translation_model,
 };
 use ipdf::npy::write_f32;
-use ipdf::training_data::{FileCrop, crop_files, crop_tensor};
-use ipdf_model::default_device;
+use ipdf::training_data::{CropError, FileCrop, crop_file_box, crop_files, crop_tensor};
 use ipdf_model::rotation::{ArgmaxOptions, ImplicitPdf, Predictor};
 use ipdf_model::translation::{CropGeometry, TranslationPdf};
+use ipdf_model::{ImageBox, default_device};
 use serde_json::{Value, json};
 use so3_grid::{Grid, rotation_to_matrix, rotation_to_wxyz};
 
@@ -27,9 +27,14 @@ pub struct PredictArgs {
     /// Colour image (PNG or JPEG).
     #[arg(long)]
     pub rgb: PathBuf,
-    /// The object's mask in it (non-zero on the object).
-    #[arg(long)]
-    pub mask: PathBuf,
+    /// The object's mask in it (non-zero on the object): the crop keeps its pixels only.
+    #[arg(long, required_unless_present = "bbox", conflicts_with = "bbox")]
+    pub mask: Option<PathBuf>,
+    /// The object's box in it instead of a mask, `x,y,w,h` in pixels (a detector's box: the
+    /// pixels whose centres lie in `[x, x + w) × [y, y + h)`); the crop keeps everything in
+    /// it. Models trained with `ipdf train --crop box` expect such crops.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub bbox: Option<Vec<f64>>,
     /// The camera's intrinsics in pixels, `fx,fy,cx,cy` (BOP's cam_K): needed by translation
     /// models (without it, a pose run predicts the orientation only).
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
@@ -75,7 +80,11 @@ pub fn run(args: &PredictArgs) -> Result<Value> {
         (None, Some(model)) => model.config().network.input_size,
         (None, None) => bail!("{}: no model", args.checkpoint.display()),
     } as usize;
-    let crop = crop_files(&args.rgb, &args.mask, size)?;
+    let crop = match (&args.mask, args.bbox.as_deref()) {
+        (Some(mask), _) => crop_files(&args.rgb, mask, size)?,
+        (None, Some(values)) => box_crop(&args.rgb, values, size)?,
+        (None, None) => bail!("--mask or --bbox: where the object is in --rgb"),
+    };
     // Every input is checked before anything is written.
     let geometry = translation
         .as_ref()
@@ -132,6 +141,27 @@ fn predict_rotation(model: &ImplicitPdf, crop: &FileCrop, args: &PredictArgs) ->
         "cells": masses.len(),
         "densest": densest,
     }))
+}
+
+/// The crop of `rgb` in the box `--bbox x,y,w,h` (checked against the image).
+fn box_crop(rgb: &Path, values: &[f64], size: usize) -> Result<FileCrop> {
+    let &[x, y, width, height] = values else {
+        bail!(
+            "--bbox: 4 numbers x,y,w,h (the box's corner and size in pixels), got {}",
+            values.len()
+        );
+    };
+    let image_box = ImageBox {
+        x,
+        y,
+        width,
+        height,
+    };
+    match crop_file_box(rgb, &image_box, size, false) {
+        Ok(crop) => Ok(crop),
+        Err(CropError::BadBox(reason)) => bail!("--bbox {reason}"),
+        Err(error) => Err(error.into()),
+    }
 }
 
 /// Where the crop lies in the image of `--intrinsics` (checked).

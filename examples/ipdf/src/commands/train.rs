@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use anyhow::{Result, bail};
 use ipdf::progress::bar;
 use ipdf::training::{TRANSLATION_DIR, Target, TrainRequest, train_model};
-use ipdf::training_data::LabelSource;
+use ipdf::training_data::{CropSource, LabelSource};
 use ipdf_model::{EncoderKind, ModelConfig};
 
 /// The encoder named on the command line.
@@ -83,6 +83,12 @@ pub struct TrainArgs {
     /// The paper's occlusion augmentation (rectangles over 10–50% of 80% of the crops).
     #[arg(long)]
     pub occlusion: bool,
+    /// What the crops are cut around: the visible mask (background black), or the visible box
+    /// (`bbox_visib`, else the mask's box) with everything inside it, each training box moved
+    /// at random by up to 10% as a detector's are — for models that will be given a
+    /// detector's box (`ipdf predict --bbox`, `ipdf eval --crop box`).
+    #[arg(long, default_value = "mask", value_parser = choice::<CropSource>())]
+    pub crop: CropSource,
     /// Query rotations per image and step: the rotated grid of this level (2: 4,608, as the
     /// reference; 1: 576 for quick CPU runs).
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(0..=3))]
@@ -132,6 +138,7 @@ pub fn run(args: &TrainArgs, seed: u64) -> Result<serde_json::Value> {
         batch_size: args.batch_size,
         learning_rate: args.learning_rate,
         occlusion: args.occlusion,
+        crop: args.crop,
         query_level: args.query_level,
         translation_queries: args.translation_queries as usize,
         continuous_steps: args.continuous_steps,

@@ -1,13 +1,14 @@
 //! Scores of trained runs on a BOP split with ground truth (`ipdf eval`, the pipeline's
 //! `eval_levelN.json`): a rotation model's ([`rotation`]), a translation model's and a pose's
-//! ([`translation`]), side by side.
+//! ([`translation`]), side by side, and per instance as real frames are scored
+//! ([`instances`]).
+pub mod instances;
 pub mod rotation;
 pub mod translation;
 
 use std::path::{Path, PathBuf};
 
-use bop_dataset::BopDataset;
-use bop_dataset::Progress;
+use bop_dataset::{BopDataset, Progress, RotationRepairs, read_models_info};
 use ipdf_model::rotation::{ImplicitPdf, UNDER_RESOLUTION_LIMIT};
 use ipdf_model::translation::TranslationPdf;
 use ipdf_model::{RefineOptions, default_device};
@@ -15,10 +16,12 @@ use serde::{Deserialize, Serialize};
 
 use crate::Error;
 use crate::run_info::RunInfo;
-use crate::training_data::{ExampleOptions, load_examples};
+use crate::training_data::{CropSource, ExampleOptions, Examples, load_examples};
+use instances::{Accuracy, InstanceScore, PoseParts, score_instances};
 use rotation::evaluate_rotations;
 use translation::{
-    PoseEval, TranslationEval, evaluate_pose, evaluate_translation, pose_translation_model,
+    PoseEval, TranslationEval, evaluate_pose, evaluate_translation, model_points,
+    pose_translation_model,
 };
 
 /// Which trained run to score, on what and on which grid.
@@ -40,7 +43,56 @@ pub struct EvalRequest {
     pub level: u8,
     /// Every cell of the level (up to level 5), else level 2 refined hierarchically.
     pub dense: bool,
+    /// What the crops are cut around (default: boxes for a run trained on boxes, else masks
+    /// where the split has them and boxes where not).
+    pub crop: Option<CropSource>,
+    /// Instances less visible than this (`visib_fract`) are left out.
+    pub min_visible_fraction: f64,
+    /// Each instance's scores too (the most likely rotation of every crop: a little slower).
+    pub per_instance: bool,
 }
+
+impl EvalRequest {
+    /// Scores of the run in `checkpoint` on `split`: the hierarchical evaluation to `level`,
+    /// the run's dataset, object and crops, instances at least 10% visible (BOP's threshold),
+    /// no per-instance scores.
+    pub fn new(checkpoint: PathBuf, split: &str, level: u8) -> Self {
+        Self {
+            checkpoint,
+            dataset: None,
+            models_dir: None,
+            obj_id: None,
+            split: split.to_string(),
+            level,
+            dense: false,
+            crop: None,
+            min_visible_fraction: MIN_VISIBLE_FRACTION,
+            per_instance: false,
+        }
+    }
+
+    /// The examples the request scores, with crops of `size` pixels, for the run of `info`.
+    fn examples(
+        &self,
+        dataset: &BopDataset,
+        info: &RunInfo,
+        size: usize,
+    ) -> Result<Examples, Error> {
+        let crop = self.crop.unwrap_or(match info.crop {
+            CropSource::Box => CropSource::Box,
+            _ => CropSource::Auto,
+        });
+        let options = ExampleOptions {
+            min_visible_fraction: self.min_visible_fraction,
+            crop,
+            ..ExampleOptions::evaluation(&self.split, info.obj_id, size)
+        };
+        load_examples(dataset, &options)
+    }
+}
+
+/// BOP's least visible fraction of an instance scored.
+pub const MIN_VISIBLE_FRACTION: f64 = 0.1;
 
 /// The scores of a run: the JSON of `ipdf eval` and the pipeline's `eval_levelN.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -80,6 +132,20 @@ pub struct EvalResult {
     /// The two models' scores as a 6D pose, when the run has a translation model.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pose: Option<PoseEval>,
+    /// Acc@15°, Acc@30° and ADD(-S) over the instances, when scored per instance.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub accuracy: Option<Accuracy>,
+    /// Each instance's scores, when asked for.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub instances: Vec<InstanceScore>,
+    /// Ground-truth rotations orthonormal only to published precision, read as their nearest
+    /// rotations.
+    #[serde(default, skip_serializing_if = "no_repairs")]
+    pub repaired_rotations: RotationRepairs,
+}
+
+fn no_repairs(repairs: &RotationRepairs) -> bool {
+    repairs.count == 0
 }
 
 /// The scores of a translation model's run: the JSON of `ipdf eval` on one.
@@ -106,10 +172,7 @@ pub fn evaluate_translation_run(
     let (info, dataset) = run_dataset(request)?;
     let model = TranslationPdf::load(&request.checkpoint, default_device())?;
     let size = model.config().network.input_size as usize;
-    let examples = load_examples(
-        &dataset,
-        &ExampleOptions::evaluation(&request.split, info.obj_id, size),
-    )?;
+    let examples = request.examples(&dataset, &info, size)?;
     progress.set_total(examples.instances.len() as u64, 0);
     let (translation, _) = evaluate_translation(&model, &examples, progress)?;
     Ok(TranslationRunEval {
@@ -154,34 +217,43 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
     };
     let (info, dataset) = run_dataset(request)?;
     let model = ImplicitPdf::load(&request.checkpoint, default_device())?;
-    let size = model.config().input_size as usize;
-    let options = ExampleOptions::evaluation(&request.split, info.obj_id, size);
-    let examples = load_examples(&dataset, &options)?;
+    let examples = request.examples(&dataset, &info, model.config().input_size as usize)?;
     let translation_model = pose_translation_model(&request.checkpoint, &model)?;
     let passes = if translation_model.is_some() { 2 } else { 1 };
     progress.set_total(passes * examples.instances.len() as u64, 0);
-    let (scores, rotations) = evaluate_rotations(
-        &model,
-        &examples,
-        &grid,
-        translation_model.is_some(),
-        progress,
-    )?;
+    let argmax = translation_model.is_some() || request.per_instance;
+    let evaluation = evaluate_rotations(&model, &examples, &grid, argmax, progress)?;
+    let scores = evaluation.scores;
+    let mut translations = Vec::new();
     let (translation, pose) = match &translation_model {
         Some(translation_model) => {
-            let (translation, translations) =
+            let (translation, argmax_translations) =
                 evaluate_translation(translation_model, &examples, progress)?;
             let pose = evaluate_pose(
                 &examples,
-                &rotations,
-                &translations,
+                &evaluation.argmax,
+                &argmax_translations,
                 &dataset,
                 info.obj_id,
                 (scores.llh, translation.llh),
             )?;
+            translations = argmax_translations;
             (Some(translation), Some(pose))
         }
         None => (None, None),
+    };
+    let (instances, accuracy) = if request.per_instance {
+        let (rows, accuracy) = per_instance(
+            request,
+            &examples,
+            &evaluation,
+            &translations,
+            &dataset,
+            info.obj_id,
+        )?;
+        (rows, Some(accuracy))
+    } else {
+        (Vec::new(), None)
     };
     Ok(EvalResult {
         object: info.object,
@@ -214,7 +286,47 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
         }),
         translation,
         pose,
+        accuracy,
+        instances,
+        repaired_rotations: examples.repairs,
     })
+}
+
+/// Each instance's scores and their summary ([`score_instances`]); ADD(-S) on the object's
+/// mesh where the run has translations.
+fn per_instance(
+    request: &EvalRequest,
+    examples: &Examples,
+    evaluation: &rotation::RotationEvaluation,
+    translations: &[nalgebra::Vector3<f64>],
+    dataset: &BopDataset,
+    obj_id: u32,
+) -> Result<(Vec<InstanceScore>, Accuracy), Error> {
+    let parts = if translations.is_empty() {
+        None
+    } else {
+        let (points, diameter_mm) = model_points(dataset, obj_id)?;
+        let models = read_models_info(&dataset.models_info_path())?;
+        let symmetric = models
+            .get(&obj_id)
+            .is_some_and(|m| m.symmetry != ipdf_metrics::SymmetryGroup::none());
+        Some((points, diameter_mm, symmetric))
+    };
+    let pose = parts
+        .as_ref()
+        .map(|(points, diameter_mm, symmetric)| PoseParts {
+            translations,
+            points,
+            diameter_mm: *diameter_mm,
+            symmetric: *symmetric,
+        });
+    score_instances(
+        examples,
+        &evaluation.llh,
+        &evaluation.argmax,
+        pose.as_ref(),
+        request.min_visible_fraction,
+    )
 }
 
 /// The file the pipeline keeps a run's scores at `level` in.

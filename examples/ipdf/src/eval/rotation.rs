@@ -44,19 +44,30 @@ pub fn evaluate(
     grid: &RefineOptions,
     progress: &dyn Progress,
 ) -> Result<Scores, Error> {
-    Ok(evaluate_rotations(model, examples, grid, false, progress)?.0)
+    Ok(evaluate_rotations(model, examples, grid, false, progress)?.scores)
 }
 
-/// [`evaluate`], and with `argmax` each crop's most likely rotation too
-/// ([`Predictor::argmax_from`] on the same distribution; empty without). Each crop's image term
-/// is computed once.
+/// Each crop's scores beside the means: what [`evaluate_rotations`] returns.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RotationEvaluation {
+    /// The means over the crops.
+    pub scores: Scores,
+    /// Each crop's LLH (mean log-density over its ground-truth set).
+    pub llh: Vec<f64>,
+    /// Each crop's most likely rotation (empty unless asked for).
+    pub argmax: Vec<UnitQuaternion<f64>>,
+}
+
+/// [`evaluate`], with each crop's LLH, and with `argmax` each crop's most likely rotation too
+/// ([`Predictor::argmax_from`] on the same distribution). Each crop's image term is computed
+/// once.
 pub fn evaluate_rotations(
     model: &ImplicitPdf,
     examples: &Examples,
     grid: &RefineOptions,
     argmax: bool,
     progress: &dyn Progress,
-) -> Result<(Scores, Vec<UnitQuaternion<f64>>), Error> {
+) -> Result<RotationEvaluation, Error> {
     let Some(truths) = &examples.truth_sets else {
         return Err(Error::option(
             "dataset",
@@ -68,15 +79,15 @@ pub fn evaluate_rotations(
         refine: *grid,
         ..ArgmaxOptions::default()
     };
-    let (mut sum_llh, mut sum_maad, mut sum_recall, mut queries) = (0.0, 0.0, 0.0, 0);
+    let (mut sum_maad, mut sum_recall, mut queries) = (0.0, 0.0, 0);
     let mut sum_under = 0.0;
-    let mut rotations = Vec::new();
+    let (mut llh, mut rotations) = (Vec::new(), Vec::new());
     for (i, truth) in truths.iter().enumerate() {
         let crop = to_unit_floats(&examples.crops.get(i as i64));
         let image_term = predictor.image_term(&crop)?;
         let masses = predictor.hierarchical_for(&image_term, grid)?;
         let densities = predictor.log_densities_for(&image_term, truth, &masses)?;
-        sum_llh += densities.iter().sum::<f64>() / densities.len().max(1) as f64;
+        llh.push(densities.iter().sum::<f64>() / densities.len().max(1) as f64);
         let distribution = cell_distribution(&masses)?;
         sum_maad += maad(&distribution, truth)?;
         sum_recall += recall_maad(&distribution, truth, RECALL_THRESHOLD)?;
@@ -91,13 +102,17 @@ pub fn evaluate_rotations(
     let n = truths.len().max(1) as f64;
     let scores = Scores {
         images: truths.len(),
-        llh: sum_llh / n,
+        llh: llh.iter().sum::<f64>() / n,
         maad_deg: sum_maad / n,
         recall_maad_deg: sum_recall / n,
         queries_per_image: queries,
         under_resolution: sum_under / n,
     };
-    Ok((scores, rotations))
+    Ok(RotationEvaluation {
+        scores,
+        llh,
+        argmax: rotations,
+    })
 }
 
 /// The cells and masses of a (hierarchical or dense) evaluation as a `metrics` distribution.

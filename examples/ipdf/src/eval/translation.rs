@@ -19,6 +19,7 @@ use tch::Tensor;
 use bop_dataset::BopDataset;
 
 use crate::Error;
+use crate::eval::instances::median;
 use crate::training::TRANSLATION_DIR;
 use crate::training_data::{Examples, to_unit_floats};
 
@@ -177,12 +178,6 @@ pub fn evaluate_pose(
     })
 }
 
-/// The median (upper middle) of `values`, sorting them; NaN for none.
-fn median(values: &mut [f64]) -> f64 {
-    values.sort_by(f64::total_cmp);
-    values.get(values.len() / 2).copied().unwrap_or(f64::NAN)
-}
-
 fn truth_poses(examples: &Examples) -> Result<&[Isometry3<f64>], Error> {
     examples
         .truth_poses
@@ -190,9 +185,9 @@ fn truth_poses(examples: &Examples) -> Result<&[Isometry3<f64>], Error> {
         .ok_or_else(|| Error::option("dataset", "evaluation needs the split's scene_gt.json"))
 }
 
-/// [`ADD_S_POINTS`] points on the surface of `obj_id`'s mesh (mm, as BOP meshes are) and its
+/// 2,000 points on the surface of `obj_id`'s mesh (mm, as BOP meshes are) and its
 /// diameter from `models_info.json`.
-fn model_points(dataset: &BopDataset, obj_id: u32) -> Result<(ModelPoints, f64), Error> {
+pub fn model_points(dataset: &BopDataset, obj_id: u32) -> Result<(ModelPoints, f64), Error> {
     let path = dataset.model_path(obj_id);
     let mesh = depth_render::load_mesh(&path, 1.0)
         .map_err(|e| bop_dataset::FileError::new(&path, "mesh", e.to_string()))?

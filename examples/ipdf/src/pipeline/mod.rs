@@ -39,7 +39,7 @@ use crate::progress::bar;
 use crate::run_info::RunInfo;
 use crate::training::{TRANSLATION_DIR, Target, TrainRequest, is_trained, train_model};
 use crate::training_data::{
-    ExampleOptions, LabelSource, crop_files, load_examples, to_unit_floats,
+    CropSource, ExampleOptions, LabelSource, crop_files, load_examples, to_unit_floats,
 };
 
 /// The objects of the run.
@@ -310,6 +310,7 @@ fn train_models(out: &Path, plan: &Plan, runs: &[ModelRun], seed: u64) -> Result
             batch_size: plan.batch_size,
             learning_rate: plan.learning_rate_of(target),
             occlusion: run.occlusion,
+            crop: CropSource::Mask,
             query_level: plan.query_level,
             translation_queries: plan.translation_queries,
             continuous_steps: 36,
@@ -335,15 +336,7 @@ fn evaluate_models(plan: &Plan, runs: &[ModelRun]) -> Result<Vec<EvalResult>, Er
         .filter(|run| !eval_file(&run.dir, plan.eval_level).exists())
         .collect();
     on_threads(&pending, plan.concurrent_models, |run| {
-        let request = EvalRequest {
-            checkpoint: run.dir.clone(),
-            dataset: None,
-            models_dir: None,
-            obj_id: None,
-            split: "val".into(),
-            level: plan.eval_level,
-            dense: false,
-        };
+        let request = EvalRequest::new(run.dir.clone(), "val", plan.eval_level);
         let progress = bar(0, "images");
         write_json(
             &eval_file(&run.dir, plan.eval_level),

@@ -138,6 +138,7 @@ mod tests {
                 ("bowl".to_string(), scores(vec![0.01, 0.02, 0.5])),
                 ("can".to_string(), scores(vec![0.0, 3.0, 170.0])),
             ]),
+            ..LabelReport::default()
         };
         let image = plot_label_errors(&[("uniform", &report), ("texture", &report)]).unwrap();
         assert_eq!(image.dimensions(), (1120, 460));

@@ -17,6 +17,16 @@ pub const BRIEF_TRAINING: [&str; 6] = [
     "4",
 ];
 
+/// The network of the barely trained runs: a small CNN on 32-pixel crops, a 16,16 head.
+pub const SMALL_NETWORK: [&str; 6] = [
+    "--encoder",
+    "small-cnn",
+    "--input-size",
+    "32",
+    "--head",
+    "16,16",
+];
+
 /// Runs `ipdf` with `args`.
 pub fn ipdf(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_ipdf"))

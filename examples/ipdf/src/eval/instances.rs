@@ -1,0 +1,212 @@
+//! Scores per instance, as real frames are scored: the most likely rotation's angle to the
+//! nearest true pose under the object's symmetries, Acc@15° and Acc@30°, the truth's LLH
+//! against the uniform density, and for pose runs the translation error and ADD(-S) at 10% of
+//! the diameter (BOP's convention: ADD for objects without symmetries, ADD-S for those with).
+//! [`markdown`] writes them as a table.
+use std::fmt::Write as _;
+
+use ipdf_metrics::{ModelPoints, add, add_s, translation_error};
+use nalgebra::{Isometry3, UnitQuaternion, Vector3};
+use serde::{Deserialize, Serialize};
+use so3_grid::geodesic_distance;
+
+use crate::Error;
+use crate::training_data::Examples;
+
+/// The thresholds of the rotation accuracies (degrees).
+pub const ACCURACY_THRESHOLDS_DEG: [f64; 2] = [15.0, 30.0];
+/// ADD(-S) counts a pose correct under this fraction of the object's diameter (BOP, YCB-Video,
+/// LINEMOD).
+pub const ADD_FRACTION: f64 = 0.1;
+
+/// The log-density of the uniform distribution on SO(3) (volume π²): the LLH of a model that
+/// has learnt nothing.
+pub fn uniform_llh() -> f64 {
+    -(std::f64::consts::PI.powi(2)).ln()
+}
+
+/// One instance's scores: a row of `ipdf eval`'s `"instances"`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct InstanceScore {
+    /// Scene id.
+    pub scene_id: u32,
+    /// Image id.
+    pub im_id: u32,
+    /// The instance's index in the image (`scene_gt.json` order).
+    pub instance: usize,
+    /// Visible fraction (`visib_fract` of `scene_gt_info.json`), where the split has it.
+    pub visib_fract: Option<f64>,
+    /// Angle of the most likely rotation to the nearest true pose under the object's
+    /// symmetries, degrees (continuous symmetries in 200 steps: within 0.9° of exact).
+    pub rotation_error_deg: f64,
+    /// Mean log-density of the ground-truth set (nats; the uniform density scores −2.29).
+    pub llh: f64,
+    /// Distance of the most likely translation from the truth (mm), for pose runs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub translation_error_mm: Option<f64>,
+    /// ADD, or ADD-S for a symmetric object, of the most likely pose (mm), for pose runs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub add_mm: Option<f64>,
+}
+
+/// The scores over all instances: `ipdf eval`'s `"accuracy"`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Accuracy {
+    /// Instances scored.
+    pub instances: usize,
+    /// The least visible fraction scored (`--min-visib`; instances without one are scored).
+    pub min_visib: f64,
+    /// Share of instances whose rotation error is under 15°.
+    pub acc_15: f64,
+    /// Share under 30°.
+    pub acc_30: f64,
+    /// Median rotation error, degrees.
+    pub median_rotation_error_deg: f64,
+    /// Share of instances whose truth is denser than the uniform density.
+    pub above_uniform: f64,
+    /// The uniform density's LLH (−ln π²).
+    pub uniform_llh: f64,
+    /// `ADD` or `ADD-S`, for pose runs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub add_metric: Option<String>,
+    /// Share of instances under 10% of the diameter in ADD(-S), for pose runs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub add_accuracy: Option<f64>,
+    /// Median translation error (mm), for pose runs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub median_translation_error_mm: Option<f64>,
+}
+
+/// The most likely translations of a pose run and what ADD(-S) needs.
+pub struct PoseParts<'a> {
+    /// Each crop's most likely translation (mm).
+    pub translations: &'a [Vector3<f64>],
+    /// Points on the object's surface (mm).
+    pub points: &'a ModelPoints,
+    /// The object's diameter (mm).
+    pub diameter_mm: f64,
+    /// Whether the object has symmetries (ADD-S), else ADD.
+    pub symmetric: bool,
+}
+
+/// Each instance's scores and their summary, from each crop's LLH and most likely rotation
+/// (and, for pose runs, the translations).
+pub fn score_instances(
+    examples: &Examples,
+    llh: &[f64],
+    rotations: &[UnitQuaternion<f64>],
+    pose: Option<&PoseParts>,
+    min_visib: f64,
+) -> Result<(Vec<InstanceScore>, Accuracy), Error> {
+    let missing = || Error::option("dataset", "evaluation needs the split's scene_gt.json");
+    let truth_sets = examples.truth_sets.as_ref().ok_or_else(missing)?;
+    let truth_poses = examples.truth_poses.as_ref().ok_or_else(missing)?;
+    let mut rows = Vec::with_capacity(truth_sets.len());
+    for (i, at) in examples.instances.iter().enumerate() {
+        let nearest = truth_sets[i]
+            .iter()
+            .map(|truth| geodesic_distance(truth, &rotations[i]))
+            .fold(f64::INFINITY, f64::min);
+        let estimate = pose.map(|p| Isometry3::from_parts(p.translations[i].into(), rotations[i]));
+        let truth = &truth_poses[i];
+        rows.push(InstanceScore {
+            scene_id: at.scene_id,
+            im_id: at.im_id,
+            instance: at.instance,
+            visib_fract: examples.visible_fractions[i],
+            rotation_error_deg: nearest.to_degrees(),
+            llh: llh[i],
+            translation_error_mm: estimate
+                .map(|e| translation_error(&e.translation.vector, &truth.translation.vector)),
+            add_mm: pose.zip(estimate).map(|(p, e)| {
+                if p.symmetric {
+                    add_s(p.points, &e, truth)
+                } else {
+                    add(p.points, &e, truth)
+                }
+            }),
+        });
+    }
+    let accuracy = summarise(&rows, pose, min_visib);
+    Ok((rows, accuracy))
+}
+
+fn summarise(rows: &[InstanceScore], pose: Option<&PoseParts>, min_visib: f64) -> Accuracy {
+    let n = rows.len().max(1) as f64;
+    let share =
+        |test: &dyn Fn(&InstanceScore) -> bool| rows.iter().filter(|r| test(r)).count() as f64 / n;
+    let [low, high] = ACCURACY_THRESHOLDS_DEG;
+    let mut errors: Vec<f64> = rows.iter().map(|r| r.rotation_error_deg).collect();
+    let mut translations: Vec<f64> = rows.iter().filter_map(|r| r.translation_error_mm).collect();
+    Accuracy {
+        instances: rows.len(),
+        min_visib,
+        acc_15: share(&|r| r.rotation_error_deg < low),
+        acc_30: share(&|r| r.rotation_error_deg < high),
+        median_rotation_error_deg: median(&mut errors),
+        above_uniform: share(&|r| r.llh > uniform_llh()),
+        uniform_llh: uniform_llh(),
+        add_metric: pose.map(|p| if p.symmetric { "ADD-S" } else { "ADD" }.to_string()),
+        add_accuracy: pose
+            .map(|p| share(&|r| r.add_mm.is_some_and(|d| d < ADD_FRACTION * p.diameter_mm))),
+        median_translation_error_mm: pose.map(|_| median(&mut translations)),
+    }
+}
+
+/// The median (upper middle) of `values`, sorting them; NaN for none.
+pub fn median(values: &mut [f64]) -> f64 {
+    values.sort_by(f64::total_cmp);
+    values.get(values.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+/// The instances and their summary as a Markdown table, under a heading naming `what`.
+pub fn markdown(what: &str, rows: &[InstanceScore], accuracy: &Accuracy) -> String {
+    let pose = accuracy.add_metric.as_deref();
+    let mut out =
+        format!("## {what}\n\n| scene | image | instance | visible | rotation error (°) | LLH |");
+    let mut rule = String::from("|---|---|---|---|---|---|");
+    if let Some(metric) = pose {
+        let _ = write!(out, " translation error (mm) | {metric} (mm) |");
+        rule.push_str("---|---|");
+    }
+    let _ = writeln!(out, "\n{rule}");
+    for r in rows {
+        let visible = r
+            .visib_fract
+            .map_or("—".to_string(), |v| format!("{:.0}%", 100.0 * v));
+        let _ = write!(
+            out,
+            "| {} | {} | {} | {visible} | {:.1} | {:.2} |",
+            r.scene_id, r.im_id, r.instance, r.rotation_error_deg, r.llh
+        );
+        if pose.is_some() {
+            let mm = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.1}"));
+            let _ = write!(out, " {} | {} |", mm(r.translation_error_mm), mm(r.add_mm));
+        }
+        out.push('\n');
+    }
+    let a = accuracy;
+    let _ = write!(
+        out,
+        "\n{} instances (visible fraction ≥ {}): Acc@15° {:.0}%, Acc@30° {:.0}%, median rotation \
+         error {:.1}°, truth denser than uniform (LLH > {:.2}) for {:.0}%",
+        a.instances,
+        a.min_visib,
+        100.0 * a.acc_15,
+        100.0 * a.acc_30,
+        a.median_rotation_error_deg,
+        a.uniform_llh,
+        100.0 * a.above_uniform
+    );
+    if let (Some(metric), Some(share), Some(t)) =
+        (pose, a.add_accuracy, a.median_translation_error_mm)
+    {
+        let _ = write!(
+            out,
+            "; {metric} under 10% of the diameter {:.0}%, median translation error {t:.1} mm",
+            100.0 * share
+        );
+    }
+    out.push_str(".\n");
+    out
+}
