@@ -71,6 +71,22 @@ impl EvalRequest {
         }
     }
 
+    /// The cells scored: every cell of the level (`dense`, up to level 5), else level 2 refined
+    /// hierarchically to it.
+    fn grid(&self) -> Result<RefineOptions, Error> {
+        if !self.dense {
+            return Ok(RefineOptions::to_level(self.level));
+        }
+        if self.level > 5 {
+            let reason = format!(
+                "--dense goes up to level 5 (2,359,296 cells); got --level {}",
+                self.level
+            );
+            return Err(Error::option("level", reason));
+        }
+        Ok(RefineOptions::dense(self.level))
+    }
+
     /// The examples the request scores, with crops of `size` pixels, for the run of `info`.
     fn examples(
         &self,
@@ -201,20 +217,7 @@ fn run_dataset(request: &EvalRequest) -> Result<(RunInfo, BopDataset), Error> {
 /// Scores the run of `request` on its split; `progress` has its length set to the crops and
 /// advances by one per crop.
 pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<EvalResult, Error> {
-    let grid = if request.dense {
-        if request.level > 5 {
-            return Err(Error::option(
-                "level",
-                format!(
-                    "--dense goes up to level 5 (2,359,296 cells); got --level {}",
-                    request.level
-                ),
-            ));
-        }
-        RefineOptions::dense(request.level)
-    } else {
-        RefineOptions::to_level(request.level)
-    };
+    let grid = request.grid()?;
     let (info, dataset) = run_dataset(request)?;
     let model = ImplicitPdf::load(&request.checkpoint, default_device())?;
     let examples = request.examples(&dataset, &info, model.config().input_size as usize)?;
