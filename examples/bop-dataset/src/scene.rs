@@ -118,9 +118,14 @@ impl RotationRepairs {
         }
     }
 
+    /// Whether nothing was repaired.
+    pub fn is_empty(&self) -> bool {
+        self.count == 0
+    }
+
     /// One line saying what was repaired, `None` when nothing was.
     pub fn note(&self) -> Option<String> {
-        (self.count > 0).then(|| {
+        (!self.is_empty()).then(|| {
             format!(
                 "{} ground-truth rotation(s) orthonormal only to |RᵀR − I| ≤ {:.1e} (worst: {}) \
                  read as their nearest rotations",
@@ -131,12 +136,13 @@ impl RotationRepairs {
         })
     }
 
-    fn add(&mut self, error: f64, at: String) {
+    /// Counts a rotation whose |RᵀR − I| is `error` when it was repaired; `at` names it.
+    fn add(&mut self, error: f64, at: impl FnOnce() -> String) {
         if error > so3_grid::ORTHONORMALITY_TOLERANCE {
             self.merge(&Self {
                 count: 1,
                 worst_orthogonality_error: error,
-                worst_at: Some(at),
+                worst_at: Some(at()),
             });
         }
     }
@@ -156,7 +162,7 @@ pub fn read_scene_gt_repaired(
                 .map(|(prefix, item)| {
                     let pose = pose_from_json(item, path, &prefix)?;
                     let matrix: [f64; 9] = numbers_at(item, "cam_R_m2c", path, &prefix)?;
-                    let at = format!("{}: {prefix}cam_R_m2c", path.display());
+                    let at = || format!("{}: {prefix}cam_R_m2c", path.display());
                     repairs.add(so3_grid::orthogonality_error(&matrix), at);
                     Ok(GtInstance {
                         obj_id: id_at(item, "obj_id", path, &prefix)?,

@@ -162,6 +162,22 @@ pub struct Examples {
     pub repairs: RotationRepairs,
 }
 
+impl Examples {
+    /// [`Examples::truth_sets`], or the error that scoring needs them.
+    pub fn required_truth_sets(&self) -> Result<&[Vec<UnitQuaternion<f64>>], Error> {
+        self.truth_sets.as_deref().ok_or_else(no_truth)
+    }
+
+    /// [`Examples::truth_poses`], or the error that scoring needs them.
+    pub fn required_truth_poses(&self) -> Result<&[Isometry3<f64>], Error> {
+        self.truth_poses.as_deref().ok_or_else(no_truth)
+    }
+}
+
+fn no_truth() -> Error {
+    Error::option("dataset", "evaluation needs the split's scene_gt.json")
+}
+
 /// One instance to crop, before its images are read.
 struct Pending {
     at: InstanceRef,
@@ -431,29 +447,25 @@ fn crop_instance(
         CropSource::Box => false,
         CropSource::Auto => mask.exists(),
     };
-    let crop = if use_mask {
-        crop_files(&rgb, &mask, options.input_size)
-    } else {
-        let Some((image_box, (file, field))) = instance_box(p, &mask)? else {
-            return Ok(None);
+    if use_mask {
+        return match crop_files(&rgb, &mask, options.input_size) {
+            Ok(crop) => Ok(Some(crop)),
+            Err(CropError::EmptyMask(_)) => Ok(None),
+            Err(error) => Err(error.into()),
         };
-        let image_box = match options.box_jitter {
-            Some(seed) => jittered(&image_box, seed, &p.at),
-            None => image_box,
-        };
-        let clip = options.box_jitter.is_some();
-        crop_file_box(&rgb, &image_box, options.input_size, clip).map_err(|error| match error {
-            CropError::BadBox(reason) => {
-                CropError::Failed(FileError::new(&file, field, reason).into())
-            }
-            error => error,
-        })
+    }
+    let Some((image_box, (file, field))) = instance_box(p, &mask)? else {
+        return Ok(None);
     };
-    match crop {
+    let image_box = match options.box_jitter {
+        Some(seed) => jittered(&image_box, seed, &p.at),
+        None => image_box,
+    };
+    let clip = options.box_jitter.is_some();
+    match crop_file_box(&rgb, &image_box, options.input_size, clip) {
         Ok(crop) => Ok(Some(crop)),
-        Err(CropError::EmptyMask(_)) => Ok(None),
-        Err(CropError::Failed(error)) => Err(error),
-        Err(CropError::BadBox(reason)) => Err(Error::option("box", reason)),
+        Err(CropError::BadBox(reason)) => Err(FileError::new(&file, field, reason).into()),
+        Err(error) => Err(error.into()),
     }
 }
 
@@ -630,18 +642,18 @@ pub fn crop_file_box(
     } else {
         *image_box
     };
-    if let Some(reason) = image_box.problem(width, height) {
-        return Err(CropError::BadBox(reason));
-    }
     let options = CropOptions::new(size);
-    let (values, crop_box) = crop_in_box(
-        colour.pixels.as_flattened(),
-        image_box,
-        width,
-        height,
-        &options,
-    )
-    .map_err(Error::from)?;
+    let pixels = colour.pixels.as_flattened();
+    let (values, crop_box) = match crop_in_box(pixels, image_box, width, height, &options) {
+        Ok(crop) => crop,
+        Err(ipdf_model::ModelError::InvalidOption {
+            name: "box",
+            reason,
+        }) => {
+            return Err(CropError::BadBox(reason));
+        }
+        Err(error) => return Err(Error::from(error).into()),
+    };
     Ok(FileCrop {
         pixels: to_bytes(&values),
         crop_box,

@@ -95,12 +95,8 @@ pub struct LabelReport {
     pub objects: BTreeMap<String, ObjectLabelScores>,
     /// Ground-truth rotations orthonormal only to published precision, read as their nearest
     /// rotations (absent when none were).
-    #[serde(default, skip_serializing_if = "no_repairs")]
+    #[serde(default, skip_serializing_if = "RotationRepairs::is_empty")]
     pub repaired_rotations: RotationRepairs,
-}
-
-fn no_repairs(repairs: &RotationRepairs) -> bool {
-    repairs.count == 0
 }
 
 impl LabelReport {

@@ -5,12 +5,13 @@
 //! [`markdown`] writes them as a table.
 use std::fmt::Write as _;
 
-use ipdf_metrics::{ModelPoints, add, add_s, translation_error};
+use ipdf_metrics::{add, add_s, translation_error};
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 use so3_grid::geodesic_distance;
 
 use crate::Error;
+use crate::eval::translation::ObjectModel;
 use crate::training_data::Examples;
 
 /// The thresholds of the rotation accuracies (degrees).
@@ -77,16 +78,12 @@ pub struct Accuracy {
     pub median_translation_error_mm: Option<f64>,
 }
 
-/// The most likely translations of a pose run and what ADD(-S) needs.
+/// The most likely translations of a pose run and the object ADD(-S) is measured on.
 pub struct PoseParts<'a> {
     /// Each crop's most likely translation (mm).
     pub translations: &'a [Vector3<f64>],
-    /// Points on the object's surface (mm).
-    pub points: &'a ModelPoints,
-    /// The object's diameter (mm).
-    pub diameter_mm: f64,
-    /// Whether the object has symmetries (ADD-S), else ADD.
-    pub symmetric: bool,
+    /// The object's surface points, diameter and symmetry.
+    pub object: &'a ObjectModel,
 }
 
 /// Each instance's scores and their summary, from each crop's LLH and most likely rotation
@@ -98,9 +95,8 @@ pub fn score_instances(
     pose: Option<&PoseParts>,
     min_visib: f64,
 ) -> Result<(Vec<InstanceScore>, Accuracy), Error> {
-    let missing = || Error::option("dataset", "evaluation needs the split's scene_gt.json");
-    let truth_sets = examples.truth_sets.as_ref().ok_or_else(missing)?;
-    let truth_poses = examples.truth_poses.as_ref().ok_or_else(missing)?;
+    let truth_sets = examples.required_truth_sets()?;
+    let truth_poses = examples.required_truth_poses()?;
     let mut rows = Vec::with_capacity(truth_sets.len());
     for (i, at) in examples.instances.iter().enumerate() {
         let nearest = truth_sets[i]
@@ -119,10 +115,10 @@ pub fn score_instances(
             translation_error_mm: estimate
                 .map(|e| translation_error(&e.translation.vector, &truth.translation.vector)),
             add_mm: pose.zip(estimate).map(|(p, e)| {
-                if p.symmetric {
-                    add_s(p.points, &e, truth)
+                if p.object.symmetric {
+                    add_s(&p.object.points, &e, truth)
                 } else {
-                    add(p.points, &e, truth)
+                    add(&p.object.points, &e, truth)
                 }
             }),
         });
@@ -146,9 +142,13 @@ fn summarise(rows: &[InstanceScore], pose: Option<&PoseParts>, min_visib: f64) -
         median_rotation_error_deg: median(&mut errors),
         above_uniform: share(&|r| r.llh > uniform_llh()),
         uniform_llh: uniform_llh(),
-        add_metric: pose.map(|p| if p.symmetric { "ADD-S" } else { "ADD" }.to_string()),
-        add_accuracy: pose
-            .map(|p| share(&|r| r.add_mm.is_some_and(|d| d < ADD_FRACTION * p.diameter_mm))),
+        add_metric: pose.map(|p| if p.object.symmetric { "ADD-S" } else { "ADD" }.to_string()),
+        add_accuracy: pose.map(|p| {
+            share(&|r| {
+                r.add_mm
+                    .is_some_and(|d| d < ADD_FRACTION * p.object.diameter_mm)
+            })
+        }),
         median_translation_error_mm: pose.map(|_| median(&mut translations)),
     }
 }

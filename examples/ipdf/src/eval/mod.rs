@@ -8,7 +8,7 @@ pub mod translation;
 
 use std::path::{Path, PathBuf};
 
-use bop_dataset::{BopDataset, Progress, RotationRepairs, read_models_info};
+use bop_dataset::{BopDataset, Progress, RotationRepairs};
 use ipdf_model::rotation::{ImplicitPdf, UNDER_RESOLUTION_LIMIT};
 use ipdf_model::translation::TranslationPdf;
 use ipdf_model::{RefineOptions, default_device};
@@ -20,7 +20,7 @@ use crate::training_data::{CropSource, ExampleOptions, Examples, load_examples};
 use instances::{Accuracy, InstanceScore, PoseParts, score_instances};
 use rotation::evaluate_rotations;
 use translation::{
-    PoseEval, TranslationEval, evaluate_pose, evaluate_translation, model_points,
+    ObjectModel, PoseEval, TranslationEval, evaluate_pose, evaluate_translation,
     pose_translation_model,
 };
 
@@ -156,12 +156,8 @@ pub struct EvalResult {
     pub instances: Vec<InstanceScore>,
     /// Ground-truth rotations orthonormal only to published precision, read as their nearest
     /// rotations.
-    #[serde(default, skip_serializing_if = "no_repairs")]
+    #[serde(default, skip_serializing_if = "RotationRepairs::is_empty")]
     pub repaired_rotations: RotationRepairs,
-}
-
-fn no_repairs(repairs: &RotationRepairs) -> bool {
-    repairs.count == 0
 }
 
 /// The scores of a translation model's run: the JSON of `ipdf eval` on one.
@@ -227,32 +223,33 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
     let argmax = translation_model.is_some() || request.per_instance;
     let evaluation = evaluate_rotations(&model, &examples, &grid, argmax, progress)?;
     let scores = evaluation.scores;
-    let mut translations = Vec::new();
-    let (translation, pose) = match &translation_model {
+    let (translation, pose, poses) = match &translation_model {
         Some(translation_model) => {
-            let (translation, argmax_translations) =
+            let (translation, translations) =
                 evaluate_translation(translation_model, &examples, progress)?;
+            let object = ObjectModel::load(&dataset, info.obj_id)?;
             let pose = evaluate_pose(
                 &examples,
                 &evaluation.argmax,
-                &argmax_translations,
-                &dataset,
-                info.obj_id,
+                &translations,
+                &object,
                 (scores.llh, translation.llh),
             )?;
-            translations = argmax_translations;
-            (Some(translation), Some(pose))
+            (Some(translation), Some(pose), Some((translations, object)))
         }
-        None => (None, None),
+        None => (None, None, None),
     };
     let (instances, accuracy) = if request.per_instance {
-        let (rows, accuracy) = per_instance(
-            request,
+        let pose = poses.as_ref().map(|(translations, object)| PoseParts {
+            translations,
+            object,
+        });
+        let (rows, accuracy) = score_instances(
             &examples,
-            &evaluation,
-            &translations,
-            &dataset,
-            info.obj_id,
+            &evaluation.llh,
+            &evaluation.argmax,
+            pose.as_ref(),
+            request.min_visible_fraction,
         )?;
         (rows, Some(accuracy))
     } else {
@@ -293,43 +290,6 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
         instances,
         repaired_rotations: examples.repairs,
     })
-}
-
-/// Each instance's scores and their summary ([`score_instances`]); ADD(-S) on the object's
-/// mesh where the run has translations.
-fn per_instance(
-    request: &EvalRequest,
-    examples: &Examples,
-    evaluation: &rotation::RotationEvaluation,
-    translations: &[nalgebra::Vector3<f64>],
-    dataset: &BopDataset,
-    obj_id: u32,
-) -> Result<(Vec<InstanceScore>, Accuracy), Error> {
-    let parts = if translations.is_empty() {
-        None
-    } else {
-        let (points, diameter_mm) = model_points(dataset, obj_id)?;
-        let models = read_models_info(&dataset.models_info_path())?;
-        let symmetric = models
-            .get(&obj_id)
-            .is_some_and(|m| m.symmetry != ipdf_metrics::SymmetryGroup::none());
-        Some((points, diameter_mm, symmetric))
-    };
-    let pose = parts
-        .as_ref()
-        .map(|(points, diameter_mm, symmetric)| PoseParts {
-            translations,
-            points,
-            diameter_mm: *diameter_mm,
-            symmetric: *symmetric,
-        });
-    score_instances(
-        examples,
-        &evaluation.llh,
-        &evaluation.argmax,
-        pose.as_ref(),
-        request.min_visible_fraction,
-    )
 }
 
 /// The file the pipeline keeps a run's scores at `level` in.

@@ -68,12 +68,7 @@ pub fn evaluate_rotations(
     argmax: bool,
     progress: &dyn Progress,
 ) -> Result<RotationEvaluation, Error> {
-    let Some(truths) = &examples.truth_sets else {
-        return Err(Error::option(
-            "dataset",
-            "evaluation needs the split's scene_gt.json",
-        ));
-    };
+    let truths = examples.required_truth_sets()?;
     let mut predictor = Predictor::new(model);
     let argmax_options = ArgmaxOptions {
         refine: *grid,

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use bop_dataset::Progress;
-use ipdf_metrics::{ModelPoints, add_s, auc, translation_error};
+use ipdf_metrics::{ModelPoints, SymmetryGroup, add_s, auc, translation_error};
 use ipdf_model::rotation::ImplicitPdf;
 use ipdf_model::translation::{
     CropGeometry, CropTerms, TranslationArgmax, TranslationArgmaxOptions, TranslationPdf,
@@ -116,7 +116,7 @@ pub fn evaluate_translation(
     examples: &Examples,
     progress: &dyn Progress,
 ) -> Result<(TranslationEval, Vec<Vector3<f64>>), Error> {
-    let truths = truth_poses(examples)?;
+    let truths = examples.required_truth_poses()?;
     let predictor = TranslationPredictor::new(model);
     let (mut llh, mut errors, mut argmax, mut queries) = (0.0, Vec::new(), Vec::new(), 0);
     let (mut depth_errors, mut lateral_errors) = (Vec::new(), Vec::new());
@@ -153,56 +153,62 @@ pub fn evaluate_translation(
 }
 
 /// ADD-S of the poses made of the most likely rotations and translations (mm) of the crops of
-/// `examples` against the ground truth, on points sampled from `obj_id`'s mesh; with the joint
-/// LLH from the two models' mean LLHs.
+/// `examples` against the ground truth, on the surface points of `object`; with the joint LLH
+/// from the two models' mean LLHs.
 pub fn evaluate_pose(
     examples: &Examples,
     rotations: &[UnitQuaternion<f64>],
     translations: &[Vector3<f64>],
-    dataset: &BopDataset,
-    obj_id: u32,
+    object: &ObjectModel,
     llh: (f64, f64),
 ) -> Result<PoseEval, Error> {
-    let truths = truth_poses(examples)?;
-    let (points, diameter_mm) = model_points(dataset, obj_id)?;
+    let truths = examples.required_truth_poses()?;
     let mut errors = Vec::with_capacity(truths.len());
     for ((truth, rotation), translation) in truths.iter().zip(rotations).zip(translations) {
         let estimate = Isometry3::from_parts((*translation).into(), *rotation);
-        errors.push(add_s(&points, &estimate, truth));
+        errors.push(add_s(&object.points, &estimate, truth));
     }
     Ok(PoseEval {
         joint_llh: llh.0 + llh.1,
-        add_s_auc: auc(&errors, ADD_S_AUC_FRACTION * diameter_mm)?,
+        add_s_auc: auc(&errors, ADD_S_AUC_FRACTION * object.diameter_mm)?,
         median_add_s_mm: median(&mut errors),
-        diameter_mm,
+        diameter_mm: object.diameter_mm,
     })
 }
 
-fn truth_poses(examples: &Examples) -> Result<&[Isometry3<f64>], Error> {
-    examples
-        .truth_poses
-        .as_deref()
-        .ok_or_else(|| Error::option("dataset", "evaluation needs the split's scene_gt.json"))
+/// What pose errors need of an object: points on its surface, its diameter, its symmetry.
+pub struct ObjectModel {
+    /// 2,000 points on the surface of its mesh (mm, as BOP meshes are).
+    pub points: ModelPoints,
+    /// Its diameter from `models_info.json` (mm).
+    pub diameter_mm: f64,
+    /// Whether `models_info.json` gives it symmetries (ADD-S scores it, else ADD).
+    pub symmetric: bool,
 }
 
-/// 2,000 points on the surface of `obj_id`'s mesh (mm, as BOP meshes are) and its
-/// diameter from `models_info.json`.
-pub fn model_points(dataset: &BopDataset, obj_id: u32) -> Result<(ModelPoints, f64), Error> {
-    let path = dataset.model_path(obj_id);
-    let mesh = depth_render::load_mesh(&path, 1.0)
-        .map_err(|e| bop_dataset::FileError::new(&path, "mesh", e.to_string()))?
-        .mesh;
-    let (points, _) = depth_render::sample_surface(&mesh, ADD_S_POINTS, u64::from(obj_id));
-    let points: Vec<Point3<f64>> = points.iter().map(|p| p.cast()).collect();
-    let models = bop_dataset::read_models_info(&dataset.models_info_path())?;
-    let diameter = models.get(&obj_id).map(|m| m.diameter).ok_or_else(|| {
-        bop_dataset::FileError::new(
-            &dataset.models_info_path(),
-            obj_id.to_string(),
-            "no such object",
-        )
-    })?;
-    Ok((ModelPoints::new(&points)?, diameter))
+impl ObjectModel {
+    /// Object `obj_id` of `dataset`: its mesh sampled and its `models_info.json` entry.
+    pub fn load(dataset: &BopDataset, obj_id: u32) -> Result<Self, Error> {
+        let path = dataset.model_path(obj_id);
+        let mesh = depth_render::load_mesh(&path, 1.0)
+            .map_err(|e| bop_dataset::FileError::new(&path, "mesh", e.to_string()))?
+            .mesh;
+        let (points, _) = depth_render::sample_surface(&mesh, ADD_S_POINTS, u64::from(obj_id));
+        let points: Vec<Point3<f64>> = points.iter().map(|p| p.cast()).collect();
+        let models = bop_dataset::read_models_info(&dataset.models_info_path())?;
+        let info = models.get(&obj_id).ok_or_else(|| {
+            bop_dataset::FileError::new(
+                &dataset.models_info_path(),
+                obj_id.to_string(),
+                "no such object",
+            )
+        })?;
+        Ok(Self {
+            points: ModelPoints::new(&points)?,
+            diameter_mm: info.diameter,
+            symmetric: info.symmetry != SymmetryGroup::none(),
+        })
+    }
 }
 
 /// The `translation/` folder of a pose run, when it holds a checkpoint.
