@@ -161,6 +161,10 @@ fn real_frames_are_scored_per_instance_from_their_boxes_as_from_masks_filling_th
     assert_eq!(ape("0.1")["accuracy"]["instances"], 1);
     let words = eval_args(&run, &root, &["--obj-id", "1", "--min-visib", "0.5"]);
     assert_fails(&words, "no labelled instance of object 1");
+    assert_fails(
+        &eval_args(&run, &root, &["--min-visib", "1.5"]),
+        "--min-visib 1.5",
+    );
 
     // predict --bbox x,y,w,h (a detector's box: w and h count pixels) against the mask.
     let rgb = scene(&root).join("rgb/000003.png");
@@ -211,6 +215,12 @@ fn real_frames_are_scored_per_instance_from_their_boxes_as_from_masks_filling_th
     std::fs::write(&info_path, info.to_string()).unwrap();
     let words = eval_args(&run, &root, &["--crop", "box"]);
     assert_fails(&words, "scene_gt_info.json: 3[1].bbox_visib");
+
+    // Without boxes and masks a box crop has nothing to cut around: the mask it looked for is
+    // named.
+    std::fs::remove_file(&info_path).unwrap();
+    std::fs::remove_dir_all(&masks).unwrap();
+    assert_fails(&words, "000003_000001.png: file: missing: a box crop needs");
 
     // A rotation off by 0.3 is refused, naming the file and the field.
     let gt_path = scene(&root).join("scene_gt.json");
