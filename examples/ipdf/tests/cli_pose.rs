@@ -147,6 +147,21 @@ fn pose_runs_train_score_and_predict_translations() {
     let total: f64 = rows.chunks(5).map(|row| f64::from(row[4])).sum();
     assert!((total - 1.0).abs() < 1e-3, "masses sum to {total}");
     assert_eq!(read_json(&out.with_extension("json")), predicted);
+    // The same camera as a file (`--camera`, BOP's `cam_K` form) predicts the same pose; a
+    // file of another image size is refused, naming it and the field.
+    let (width, height) = image::image_dimensions(&rgb).unwrap();
+    let camera = dir.path().join("camera.json");
+    let camera_json =
+        |width: u32| serde_json::json!({"cam_K": k, "width": width, "height": height});
+    std::fs::write(&camera, camera_json(width).to_string()).unwrap();
+    let extra = ["--level", "1", "--camera", s(&camera)];
+    let from_file = ipdf_json(&predict_args(&run, &rgb, &mask, &out, &extra));
+    assert_eq!(from_file, predicted);
+    std::fs::write(&camera, camera_json(width + 1).to_string()).unwrap();
+    assert_fails(
+        &predict_args(&run, &rgb, &mask, &out, &extra),
+        &format!("{}: width is {}", camera.display(), width + 1),
+    );
     let only = predict(&translation_run, &intrinsics);
     assert_eq!(only["argmax"]["cam_t_m2c"], *t);
     assert!(only.get("level").is_none());

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use super::check_extension;
 use anyhow::{Context, Result, bail};
-use bop_dataset::write_json;
+use bop_dataset::{Intrinsics, intrinsics_from_json, read_json, write_json};
 use ipdf::eval::translation::{
     self, is_translation_run, pose_translation_dir, pose_translation_model,
 };
@@ -36,9 +36,14 @@ pub struct PredictArgs {
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub bbox: Option<Vec<f64>>,
     /// The camera's intrinsics in pixels, `fx,fy,cx,cy` (BOP's cam_K): needed by translation
-    /// models (without it, a pose run predicts the orientation only).
+    /// models (without it or `--camera`, a pose run predicts the orientation only).
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub intrinsics: Option<Vec<f64>>,
+    /// The camera as a JSON file instead of `--intrinsics`: BOP's `camera.json` or the file of
+    /// `ipdf synth --camera` (`fx fy cx cy` or `cam_K`; `width` and `height`, where given,
+    /// must be the image's).
+    #[arg(long, conflicts_with = "intrinsics")]
+    pub camera: Option<PathBuf>,
     /// Grid level of the rotation distribution (4: 294,912 rotations).
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(0..=5))]
     pub level: u8,
@@ -70,7 +75,7 @@ pub fn run(args: &PredictArgs) -> Result<Value> {
             Some(TranslationPdf::load(&args.checkpoint, default_device())?),
             None,
         ),
-        Some(model) if args.intrinsics.is_some() => {
+        Some(model) if args.intrinsics.is_some() || args.camera.is_some() => {
             (pose_translation_model(&args.checkpoint, model)?, None)
         }
         Some(_) => (None, pose_translation_dir(&args.checkpoint)),
@@ -102,8 +107,8 @@ pub fn run(args: &PredictArgs) -> Result<Value> {
     write_json(&args.out.with_extension("json"), &result)?;
     if let Some(dir) = skipped {
         eprintln!(
-            "ipdf predict: no --intrinsics, so the orientation only (the translation model of {} \
-             needs the camera's fx,fy,cx,cy)",
+            "ipdf predict: no --intrinsics or --camera, so the orientation only (the translation \
+             model of {} needs the camera's fx,fy,cx,cy)",
             dir.display()
         );
     }
@@ -164,31 +169,71 @@ fn box_crop(rgb: &Path, values: &[f64], size: usize) -> Result<FileCrop> {
     }
 }
 
-/// Where the crop lies in the image of `--intrinsics` (checked).
+/// Where the crop lies in the image of `--intrinsics` or `--camera` (checked).
 fn crop_geometry(crop: &FileCrop, args: &PredictArgs) -> Result<CropGeometry> {
-    let Some(values) = args.intrinsics.as_deref() else {
-        bail!(
-            "--intrinsics fx,fy,cx,cy: needed by the translation model of {} (the camera's cam_K)",
+    let (intrinsics, source) = match (&args.camera, args.intrinsics.as_deref()) {
+        (Some(path), _) => (camera_file(path, crop)?, path.display().to_string()),
+        (None, Some(values)) => (
+            intrinsics_flag(values)?,
+            format!("--intrinsics {}", strings(values)),
+        ),
+        (None, None) => bail!(
+            "--intrinsics fx,fy,cx,cy or --camera FILE: needed by the translation model of {} \
+             (the camera's cam_K)",
             args.checkpoint.display()
-        );
+        ),
     };
+    let geometry = crop.geometry(&intrinsics);
+    geometry.validate(0).with_context(|| source)?;
+    Ok(geometry)
+}
+
+/// The intrinsics of `--intrinsics fx,fy,cx,cy`.
+fn intrinsics_flag(values: &[f64]) -> Result<Intrinsics> {
     let &[fx, fy, cx, cy] = values else {
         bail!(
             "--intrinsics: 4 numbers fx,fy,cx,cy (the camera's cam_K), got {}",
             values.len()
         );
     };
-    let geometry = crop.geometry(&bop_dataset::Intrinsics {
+    Ok(Intrinsics {
         fx,
         fy,
         cx,
         cy,
         depth_scale: 1.0,
-    });
-    geometry
-        .validate(0)
-        .with_context(|| format!("--intrinsics {fx},{fy},{cx},{cy}"))?;
-    Ok(geometry)
+    })
+}
+
+/// The intrinsics of the camera file of `--camera`, whose image size, where it gives one, is
+/// the cropped image's.
+fn camera_file(path: &Path, crop: &FileCrop) -> Result<Intrinsics> {
+    let value = read_json(path)?;
+    let intrinsics = intrinsics_from_json(&value, path, "")?;
+    let size = ["width", "height"].map(|key| value.get(key).and_then(Value::as_f64));
+    let image = [crop.width as f64, crop.height as f64];
+    for ((key, given), actual) in ["width", "height"].iter().zip(size).zip(image) {
+        if given.is_some_and(|given| given != actual) {
+            bail!(
+                "{}: {key} is {}, but the image is {} × {} pixels (--camera names another \
+                 camera's file?)",
+                path.display(),
+                given.unwrap_or_default(),
+                crop.width,
+                crop.height
+            );
+        }
+    }
+    Ok(intrinsics)
+}
+
+/// Numbers as the command line wrote them, comma-separated.
+fn strings(values: &[f64]) -> String {
+    values
+        .iter()
+        .map(f64::to_string)
+        .collect::<Vec<_>>()
+        .join(",")
 }
 
 /// The most likely translation (`cam_t_m2c`, mm) and the summary of the distribution written
