@@ -57,7 +57,7 @@ fn number(value: &Value, key: &str) -> f64 {
 fn the_benchmark_runs_and_its_table_holds_every_instance_of_the_object() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("bench");
-    let status = Command::new("bash")
+    let run = Command::new("bash")
         .arg(workspace().join("scripts/real-frame-benchmark.sh"))
         .arg(&out)
         .arg(OBJECT.to_string())
@@ -69,9 +69,14 @@ fn the_benchmark_runs_and_its_table_holds_every_instance_of_the_object() {
             ("STEPS", "2"),
             ("LEVEL", "2"),
         ])
-        .status()
+        .output()
         .unwrap();
-    assert!(status.success(), "the benchmark failed: {status}");
+    assert!(
+        run.status.success(),
+        "the benchmark failed ({}): {}",
+        run.status,
+        String::from_utf8_lossy(&run.stderr)
+    );
 
     let expected = fixture_instances(OBJECT);
     assert!(!expected.is_empty());
