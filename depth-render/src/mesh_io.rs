@@ -1,7 +1,9 @@
 //! Loading meshes from PLY (ASCII or binary, any polygon size; BOP's `models/obj_*.ply`) and
 //! OBJ files, with a scale to metres (BOP meshes are in millimetres: `scale = 0.001`).
 //! Per-vertex normals (`nx ny nz`, OBJ `vn`), colours (`red green blue`, OBJ `v x y z r g b`) and
-//! texture coordinates (`s t`, `u v`, `texture_u texture_v`, OBJ `vt`) are kept when present.
+//! texture coordinates (`s t`, `u v`, `texture_u texture_v`, OBJ `vt`) are kept when present,
+//! and so is the name of the texture image they index (PLY's `comment TextureFile NAME`, as
+//! MeshLab and BOP's textured models write it; the OBJ material's `map_Kd`).
 //! The same reader gives the vertices alone ([`load_vertices`]: point clouds, a mesh's vertices),
 //! and [`write_ply`] writes binary little-endian PLY of vertices, normals and faces.
 use std::io::Write;
@@ -21,6 +23,9 @@ pub struct LoadedMesh {
     pub mesh: TriangleMesh,
     /// What was repaired (see [`MeshRepairs`]).
     pub repairs: MeshRepairs,
+    /// The texture image the file names, beside the mesh file (not opened here); named only
+    /// where the mesh has texture coordinates.
+    pub texture: Option<PathBuf>,
 }
 
 /// Loads a `.ply` or `.obj` mesh and multiplies its coordinates by `scale`.
@@ -54,7 +59,15 @@ pub fn load_mesh(path: &Path, scale: f64) -> Result<LoadedMesh, RenderError> {
         ));
     }
     let mesh = mesh_from_parts(path, parts, &original_vertex)?;
-    Ok(LoadedMesh { mesh, repairs })
+    let texture = match (mesh.uvs(), raw.texture) {
+        (Some(_), Some(name)) => Some(path.with_file_name(name)),
+        _ => None,
+    };
+    Ok(LoadedMesh {
+        mesh,
+        repairs,
+        texture,
+    })
 }
 
 /// The file's vertex `positions` times `scale`, in f32; an error naming the first that is not
@@ -285,6 +298,8 @@ struct RawMesh {
     normals: Option<Vec<Vector3<f32>>>,
     colors: Option<Vec<[f32; 3]>>,
     uvs: Option<Vec<[f32; 2]>>,
+    /// The texture image's name as the file gives it.
+    texture: Option<String>,
 }
 
 /// Names of texture-coordinate pairs used by PLY writers.
@@ -318,6 +333,10 @@ fn read_ply(path: &Path) -> Result<RawMesh, RenderError> {
         normals: has("nx").then(Vec::new),
         colors: (has("red") && has("green") && has("blue")).then(Vec::new),
         uvs: uv_names.map(|_| Vec::new()),
+        texture: ply.header.comments.iter().find_map(|c| {
+            let name = c.trim().strip_prefix("TextureFile")?.trim();
+            (!name.is_empty()).then(|| name.to_string())
+        }),
         ..RawMesh::default()
     };
     for (i, vertex) in vertices.iter().enumerate() {
@@ -398,9 +417,16 @@ fn read_obj(path: &Path) -> Result<RawMesh, RenderError> {
         triangulate: false,
         ..Default::default()
     };
-    let (models, _materials) = tobj::load_obj(path, &options)
+    let (models, materials) = tobj::load_obj(path, &options)
         .map_err(|e| file_error(path, "file", format!("not a readable OBJ: {e}")))?;
-    let mut raw = RawMesh::default();
+    // A material library that is missing or unreadable leaves the mesh untextured.
+    let mut raw = RawMesh {
+        texture: models
+            .iter()
+            .find_map(|m| m.mesh.material_id)
+            .and_then(|id| materials.ok()?.into_iter().nth(id)?.diffuse_texture),
+        ..RawMesh::default()
+    };
     let mut polygons = Vec::new();
     let all =
         |has: fn(&tobj::Mesh) -> bool| !models.is_empty() && models.iter().all(|m| has(&m.mesh));

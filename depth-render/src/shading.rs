@@ -27,12 +27,12 @@ pub enum Material {
 }
 
 /// An RGB image for texturing, sampled bilinearly with wrap-around; `v = 0` is the bottom row
-/// (the OBJ/PLY convention).
+/// (the OBJ/PLY convention). Clones share the texels.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ImageTexture {
     width: usize,
     height: usize,
-    texels: Vec<[f32; 3]>,
+    texels: std::sync::Arc<[[f32; 3]]>,
 }
 
 impl ImageTexture {
@@ -51,7 +51,7 @@ impl ImageTexture {
         Ok(Self {
             width,
             height,
-            texels,
+            texels: texels.into(),
         })
     }
 

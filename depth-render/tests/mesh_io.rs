@@ -237,6 +237,53 @@ fn vertex_colours_normals_and_texture_coordinates_are_kept() {
 }
 
 #[test]
+fn the_texture_image_a_file_names_is_reported_beside_it() {
+    let dir = tempfile::tempdir().unwrap();
+    // PLY as MeshLab and BOP's textured models write it: per-vertex texture_u/texture_v and
+    // the image named in a header comment.
+    let ply = |comment: &str, uv: bool| {
+        let (properties, vertices) = if uv {
+            let properties = "property float texture_u\nproperty float texture_v\n";
+            (properties, "0 0 0 0 0\n1 0 0 1 0\n0 1 0 0 1\n")
+        } else {
+            ("", "0 0 0\n1 0 0\n0 1 0\n")
+        };
+        format!(
+            "ply\nformat ascii 1.0\n{comment}element vertex 3\nproperty float x\n\
+             property float y\nproperty float z\n{properties}element face 1\n\
+             property list uchar int vertex_indices\nend_header\n{vertices}3 0 1 2\n"
+        )
+    };
+    let textured = ply("comment TextureFile obj_000001.png\n", true);
+    let loaded = load_mesh(&write(dir.path(), "m.ply", textured.as_bytes()), 1.0).unwrap();
+    assert_eq!(loaded.texture, Some(dir.path().join("obj_000001.png")));
+    assert_eq!(loaded.mesh.uvs().unwrap()[1], [1.0, 0.0]);
+    // No image named, or no coordinates to index it: no texture.
+    for (name, comment, uv) in [
+        ("p.ply", "comment made by hand\n", true),
+        ("n.ply", "comment TextureFile t.png\n", false),
+    ] {
+        let file = write(dir.path(), name, ply(comment, uv).as_bytes());
+        assert_eq!(load_mesh(&file, 1.0).unwrap().texture, None, "{name}");
+    }
+
+    // OBJ: the material's map_Kd, from the library beside it; a missing library, none.
+    let obj = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n\
+               usemtl skin\nf 1/1 2/2 3/3\n";
+    let path = write(dir.path(), "t.obj", obj.as_bytes());
+    assert_eq!(load_mesh(&path, 1.0).unwrap().texture, None);
+    write(
+        dir.path(),
+        "m.mtl",
+        b"newmtl skin\nKd 1 1 1\nmap_Kd skin.jpg\n",
+    );
+    assert_eq!(
+        load_mesh(&path, 1.0).unwrap().texture,
+        Some(dir.path().join("skin.jpg"))
+    );
+}
+
+#[test]
 fn attributes_of_the_wrong_length_or_range_are_typed_errors() {
     let mesh = depth_render::primitives::tetrahedron(0.1).unwrap();
     let n = mesh.positions().len();

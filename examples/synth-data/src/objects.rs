@@ -3,10 +3,9 @@
 //! mesh file.
 use std::path::Path;
 
-use depth_render::{MeshRepairs, Primitive, TriangleMesh, load_mesh};
+use bop_dataset::{FileError, read_rgb};
+use depth_render::{ImageTexture, Material, MeshRepairs, Primitive, TriangleMesh, load_mesh};
 use ipdf_metrics::SymmetryGroup;
-
-use bop_dataset::FileError;
 
 /// A built-in object (sizes and symmetries: [`ObjectKind::description`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -134,6 +133,9 @@ pub struct SynthObject {
     pub symmetry: SymmetryGroup,
     /// The flat colour of the "uniform" variant.
     pub colour: [f32; 3],
+    /// Its own surface, where its mesh file gives one (the texture image it names, else its
+    /// vertex colours): what the "texture" variant shows instead of colour patches.
+    pub appearance: Option<Material>,
 }
 
 impl SynthObject {
@@ -148,11 +150,14 @@ impl SynthObject {
                 SymmetryGroup::about_origin(&shape.discrete, &shape.continuous)
             },
             colour: kind.colour(),
+            appearance: None,
         })
     }
 
     /// An object from a mesh file (`scale`: its unit in metres, 0.001 for BOP's mm), with no
-    /// known symmetry, grey; and what loading repaired in the mesh.
+    /// known symmetry, grey in the "uniform" variant and its own texture or vertex colours,
+    /// where the file has them, in the "texture" variant; and what loading repaired in the mesh.
+    /// A texture image the file names but that cannot be read is refused, naming it.
     pub fn from_mesh_file(path: &Path, scale: f64) -> Result<(Self, MeshRepairs), FileError> {
         let loaded = load_mesh(path, scale).map_err(|e| match e {
             depth_render::RenderError::MeshFile {
@@ -166,12 +171,30 @@ impl SynthObject {
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| "mesh".into());
+        let appearance = match &loaded.texture {
+            Some(texture) => Some(Material::Image(read_texture(path, texture)?)),
+            None => loaded.mesh.colors().map(|_| Material::VertexColors),
+        };
         let object = Self {
             name,
             mesh: loaded.mesh,
             symmetry: SymmetryGroup::none(),
             colour: [0.7, 0.7, 0.7],
+            appearance,
         };
         Ok((object, loaded.repairs))
     }
+}
+
+/// The texture image `texture` that the mesh file `mesh` names.
+fn read_texture(mesh: &Path, texture: &Path) -> Result<ImageTexture, FileError> {
+    let image = read_rgb(texture)
+        .map_err(|e| FileError::new(mesh, "TextureFile", format!("{}: {e}", texture.display())))?;
+    let texels = image
+        .pixels
+        .iter()
+        .map(|p| p.map(|c| f32::from(c) / 255.0))
+        .collect();
+    ImageTexture::new(image.width as usize, image.height as usize, texels)
+        .map_err(|e| FileError::new(mesh, "TextureFile", e.to_string()))
 }

@@ -291,15 +291,16 @@ pub fn synthesize(
     })
 }
 
-/// How object `k` (from 0) looks in its frames: its flat colour or its own colour patches,
-/// and the options' distractors, occluders, sensor and mask errors.
+/// How object `k` (from 0) looks in its frames: its flat colour, or its own surface (a mesh
+/// file's texture or vertex colours) and else colour patches of its own; and the options'
+/// distractors, occluders, sensor and mask errors.
 fn frame_style(options: &SynthOptions, k: usize, object: &SynthObject) -> FrameStyle {
     let material = match options.variant {
         Variant::Uniform => Material::Uniform(object.colour),
-        Variant::Texture => Material::Patches {
+        Variant::Texture => object.appearance.clone().unwrap_or(Material::Patches {
             cell: 0.02,
             seed: k as u64 + 1,
-        },
+        }),
     };
     FrameStyle {
         material,

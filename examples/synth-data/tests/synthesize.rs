@@ -242,3 +242,97 @@ fn a_seed_writes_the_same_bytes_at_any_thread_count_and_another_seed_other_frame
         }
     }
 }
+
+/// A 100 mm cube as an ASCII PLY, every vertex at texture coordinates (0.5, 0.5), with the
+/// `header` lines (a comment) and, where `colour` is given (`r g b`), that vertex colour.
+fn cube_ply(header: &str, colour: &str) -> String {
+    let mut ply = format!(
+        "ply\nformat ascii 1.0\n{header}element vertex 8\nproperty float x\nproperty float y\n\
+         property float z\nproperty float texture_u\nproperty float texture_v\n"
+    );
+    if !colour.is_empty() {
+        ply += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+    }
+    ply += "element face 6\nproperty list uchar int vertex_indices\nend_header\n";
+    for k in 0..8 {
+        let [x, y, z] = [k & 1, (k >> 1) & 1, (k >> 2) & 1].map(|b| b as f64 * 100.0 - 50.0);
+        ply += &format!("{x} {y} {z} 0.5 0.5 {colour}\n");
+    }
+    // The six faces, each a quad turning outwards.
+    ply + "4 0 2 3 1\n4 4 5 7 6\n4 0 1 5 4\n4 2 6 7 3\n4 0 4 6 2\n4 1 3 7 5\n"
+}
+
+/// The colours of the object's visible pixels in every frame of `variant` of `object`.
+fn object_pixels(object: &SynthObject, variant: synth_data::Variant) -> Vec<[u8; 3]> {
+    let dir = tempfile::tempdir().unwrap();
+    let dataset = BopDataset::new(dir.path());
+    let options = SynthOptions {
+        frames: 2,
+        frames_per_scene: 2,
+        variant,
+        ..SynthOptions::default()
+    };
+    let objects = std::slice::from_ref(object);
+    synthesize(&dataset, "train", objects, &options, &Recorded::default()).unwrap();
+    let scene = dataset.scene("train", 0);
+    let mut pixels = Vec::new();
+    for im_id in [0, 1] {
+        let rgb = bop_dataset::read_rgb(&scene.rgb_path(im_id)).unwrap();
+        let mask = read_mask(&scene.mask_visib_path(im_id, 0)).unwrap();
+        pixels.extend(
+            rgb.pixels
+                .iter()
+                .zip(&mask.pixels)
+                .filter(|(_, m)| **m)
+                .map(|(p, _)| *p),
+        );
+    }
+    assert!(pixels.len() > 100, "{} object pixels", pixels.len());
+    pixels
+}
+
+#[test]
+fn a_mesh_files_own_texture_or_vertex_colours_show_in_the_texture_variant() {
+    use synth_data::Variant;
+    let dir = tempfile::tempdir().unwrap();
+    // A texture of one colour, pure green: every shaded pixel of the cube is green, darker or
+    // lighter, and nothing else; the uniform variant shows it grey.
+    let texture = vec![[0u8, 200, 0]; 16];
+    bop_dataset::write_rgb(&dir.path().join("green.png"), &texture, 4, 4).unwrap();
+    let textured = dir.path().join("textured.ply");
+    std::fs::write(&textured, cube_ply("comment TextureFile green.png\n", "")).unwrap();
+    let (object, _) = SynthObject::from_mesh_file(&textured, 0.001).unwrap();
+    let green = object_pixels(&object, Variant::Texture);
+    assert!(
+        green.iter().all(|&[r, g, b]| r == 0 && b == 0 && g > 0),
+        "{green:?}"
+    );
+    let grey = object_pixels(&object, Variant::Uniform);
+    assert!(
+        grey.iter().all(|&[r, g, b]| r == g && g == b && r > 0),
+        "{grey:?}"
+    );
+
+    // Vertex colours (red) where the file names no texture.
+    let coloured = dir.path().join("coloured.ply");
+    std::fs::write(&coloured, cube_ply("", "255 0 0")).unwrap();
+    let (object, _) = SynthObject::from_mesh_file(&coloured, 0.001).unwrap();
+    let red = object_pixels(&object, Variant::Texture);
+    assert!(
+        red.iter().all(|&[r, g, b]| r > 0 && g == 0 && b == 0),
+        "{red:?}"
+    );
+
+    // A texture the file names but that is not there: refused, naming the mesh and the field.
+    let missing = dir.path().join("missing.ply");
+    std::fs::write(&missing, cube_ply("comment TextureFile gone.png\n", "")).unwrap();
+    let error = SynthObject::from_mesh_file(&missing, 0.001)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        error.contains("missing.ply")
+            && error.contains("TextureFile")
+            && error.contains("gone.png"),
+        "{error}"
+    );
+}

@@ -6,15 +6,15 @@ use std::time::Instant;
 use super::choice::choice;
 use super::{check_extension, warn_repairs};
 use anyhow::{Context, Result, bail};
-use depth_render::{
-    Instance, Lighting, Material, Scene, SensorPreset, Window, check_mesh_size, load_mesh,
-};
+use depth_render::{Instance, Lighting, Material, Scene, SensorPreset, Window, check_mesh_size};
 use serde_json::json;
+use synth_data::SynthObject;
 
 /// Surface colouring of `--rgb`.
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
 pub enum Texture {
-    /// Light grey, or the mesh's vertex colours when it has them.
+    /// Light grey, or the mesh's own surface when it has one: the texture image it names (PLY
+    /// `comment TextureFile`, OBJ `map_Kd`), else its vertex colours.
     Uniform,
     /// Model-space patches of random colour: breaks the visual symmetry, not the geometric one.
     Patches,
@@ -69,18 +69,18 @@ pub fn run(args: &RenderArgs, seed: u64) -> Result<serde_json::Value> {
     if let Some(path) = &args.mask {
         check_extension("--mask", path, "png", "the mask (8-bit PNG)")?;
     }
-    let loaded = load_mesh(&args.mesh, args.mesh_scale)?;
-    warn_repairs(&args.mesh, &loaded.repairs);
-    let mesh = loaded.mesh;
+    let (object, repairs) = SynthObject::from_mesh_file(&args.mesh, args.mesh_scale)?;
+    warn_repairs(&args.mesh, &repairs);
+    let mesh = object.mesh;
     check_mesh_size(&mesh, &args.mesh, args.mesh_scale, "--mesh-scale")?;
     let camera_json = bop_dataset::read_json(&args.camera)?;
     let camera = bop_dataset::camera_from_json(&camera_json, &args.camera, "", None)?;
     let depth_scale = depth_scale(args, &camera_json, camera.depth_scale)?;
     let camera = camera.camera;
     let pose = bop_dataset::pose_from_json(&bop_dataset::read_json(&args.pose)?, &args.pose, "")?;
-    let material = match (args.texture, mesh.colors()) {
+    let material = match (args.texture, object.appearance) {
         (Texture::Patches, _) => Material::Patches { cell: 0.02, seed },
-        (Texture::Uniform, Some(_)) => Material::VertexColors,
+        (Texture::Uniform, Some(own)) => own,
         (Texture::Uniform, None) => Material::Uniform([0.8, 0.8, 0.8]),
     };
     let scene = Scene::new(&[mesh]);
@@ -130,7 +130,7 @@ pub fn run(args: &RenderArgs, seed: u64) -> Result<serde_json::Value> {
         "depth_max_m": depths.reduce(f64::max),
         "depth_scale": depth_scale,
         "render_ms": render_ms,
-        "mesh_repairs": loaded.repairs,
+        "mesh_repairs": repairs,
     });
     if pixels == 0 {
         let warning = "the object is not in view: check the pose (cam_t_m2c is in millimetres, \

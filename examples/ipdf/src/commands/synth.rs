@@ -32,8 +32,9 @@ pub struct SynthArgs {
     /// Metres per mesh unit of `--mesh` (BOP meshes are in millimetres).
     #[arg(long, default_value_t = 0.001)]
     pub mesh_scale: f64,
-    /// `uniform`: one flat colour per object; `texture`: colour patches that break the visual
-    /// symmetry but not the geometric one.
+    /// `uniform`: one flat colour per object; `texture`: a `--mesh` file's own texture image
+    /// (PLY `comment TextureFile`, OBJ `map_Kd`) or vertex colours where it has them, else
+    /// colour patches that break the visual symmetry but not the geometric one.
     #[arg(long, value_parser = choice::<Variant>(), default_value = "uniform")]
     pub variant: Variant,
     /// Frames per object.
