@@ -67,8 +67,7 @@ pub use images::{
     write_rgb,
 };
 pub use json::{
-    BopCamera, Intrinsics, camera_from_json, intrinsics_from_json, pose_from_json, pose_to_json,
-    read_json, read_json_as,
+    BopCamera, Intrinsics, camera_from_json, pose_from_json, pose_to_json, read_json, read_json_as,
 };
 pub use layout::{BopDataset, SceneDir, copy_dataset};
 pub use models::{ModelInfo, read_models_info, write_mesh_ply, write_models_info};

@@ -162,6 +162,12 @@ fn pose_runs_train_score_and_predict_translations() {
         &predict_args(&run, &rgb, &mask, &out, &extra),
         &format!("{}: width is {}", camera.display(), width + 1),
     );
+    // A camera file without intrinsics is refused, naming the file and the field it lacks.
+    std::fs::write(&camera, r#"{"width": 640, "height": 480}"#).unwrap();
+    assert_fails(
+        &predict_args(&run, &rgb, &mask, &out, &extra),
+        &format!("{}: fx", camera.display()),
+    );
     let only = predict(&translation_run, &intrinsics);
     assert_eq!(only["argmax"]["cam_t_m2c"], *t);
     assert!(only.get("level").is_none());

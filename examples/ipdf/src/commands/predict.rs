@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use super::check_extension;
 use anyhow::{Context, Result, bail};
-use bop_dataset::{Intrinsics, intrinsics_from_json, read_json, write_json};
+use bop_dataset::{BopCamera, Intrinsics, camera_from_json, read_json, write_json};
 use ipdf::eval::translation::{
     self, is_translation_run, pose_translation_dir, pose_translation_model,
 };
@@ -173,10 +173,11 @@ fn box_crop(rgb: &Path, values: &[f64], size: usize) -> Result<FileCrop> {
 fn crop_geometry(crop: &FileCrop, args: &PredictArgs) -> Result<CropGeometry> {
     let (intrinsics, source) = match (&args.camera, args.intrinsics.as_deref()) {
         (Some(path), _) => (camera_file(path, crop)?, path.display().to_string()),
-        (None, Some(values)) => (
-            intrinsics_flag(values)?,
-            format!("--intrinsics {}", strings(values)),
-        ),
+        (None, Some(values)) => {
+            let i = intrinsics_flag(values)?;
+            let source = format!("--intrinsics {},{},{},{}", i.fx, i.fy, i.cx, i.cy);
+            (i, source)
+        }
         (None, None) => bail!(
             "--intrinsics fx,fy,cx,cy or --camera FILE: needed by the translation model of {} \
              (the camera's cam_K)",
@@ -205,35 +206,35 @@ fn intrinsics_flag(values: &[f64]) -> Result<Intrinsics> {
     })
 }
 
-/// The intrinsics of the camera file of `--camera`, whose image size, where it gives one, is
-/// the cropped image's.
+/// The intrinsics of the camera file of `--camera` (read as `ipdf synth --camera` reads it),
+/// whose image size, where it gives one, is the cropped image's.
 fn camera_file(path: &Path, crop: &FileCrop) -> Result<Intrinsics> {
-    let value = read_json(path)?;
-    let intrinsics = intrinsics_from_json(&value, path, "")?;
-    let size = ["width", "height"].map(|key| value.get(key).and_then(Value::as_f64));
-    let image = [crop.width as f64, crop.height as f64];
-    for ((key, given), actual) in ["width", "height"].iter().zip(size).zip(image) {
-        if given.is_some_and(|given| given != actual) {
+    let image = (crop.width as u32, crop.height as u32);
+    let BopCamera {
+        camera,
+        depth_scale,
+    } = camera_from_json(&read_json(path)?, path, "", Some(image))?;
+    for (key, given, actual) in [
+        ("width", camera.width, image.0),
+        ("height", camera.height, image.1),
+    ] {
+        if given != actual {
             bail!(
-                "{}: {key} is {}, but the image is {} × {} pixels (--camera names another \
+                "{}: {key} is {given}, but the image is {} × {} pixels (--camera names another \
                  camera's file?)",
                 path.display(),
-                given.unwrap_or_default(),
-                crop.width,
-                crop.height
+                image.0,
+                image.1
             );
         }
     }
-    Ok(intrinsics)
-}
-
-/// Numbers as the command line wrote them, comma-separated.
-fn strings(values: &[f64]) -> String {
-    values
-        .iter()
-        .map(f64::to_string)
-        .collect::<Vec<_>>()
-        .join(",")
+    Ok(Intrinsics {
+        fx: camera.fx,
+        fy: camera.fy,
+        cx: camera.cx,
+        cy: camera.cy,
+        depth_scale,
+    })
 }
 
 /// The most likely translation (`cam_t_m2c`, mm) and the summary of the distribution written
