@@ -13,15 +13,33 @@ offsets = json.load(open(os.path.join(HERE, "offsets.json")))
 symm = json.load(open(os.path.join(HERE, "symmetries.json")))
 SCENES = {0: 1, 1: 1, 2: 1}  # sequence -> image id (frames 2-5 calibrated the meshes)
 
-def write_ply(path, v, f):
+def write_ply(path, v, f, appearance):
+    """Binary PLY: positions, then the scan's surface (texture_u/v and `comment TextureFile`, or
+    red/green/blue), then the faces."""
+    kind, values, _ = appearance
+    texture = os.path.basename(path)[:-4] + ".jpg"
+    header = "ply\nformat binary_little_endian 1.0\ncomment YCB scan in the YCB-Video model frame, mm (see SOURCES.md)\n"
+    if kind == "texture":
+        header += f"comment TextureFile {texture}\n"
+    header += f"element vertex {len(v)}\nproperty float x\nproperty float y\nproperty float z\n"
+    if kind == "texture":
+        fields = [("p", "<f4", 3), ("uv", "<f4", 2)]
+        header += "property float texture_u\nproperty float texture_v\n"
+    else:
+        fields = [("p", "<f4", 3), ("rgb", "u1", 3)]
+        header += "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+    header += f"element face {len(f)}\nproperty list uchar int vertex_indices\nend_header\n"
+    vert = np.zeros(len(v), dtype=fields)
+    vert["p"] = v
+    vert["uv" if kind == "texture" else "rgb"] = values
     with open(path, "wb") as fh:
-        fh.write(("ply\nformat binary_little_endian 1.0\ncomment YCB scan in the YCB-Video model frame, mm (see SOURCES.md)\n"
-                  f"element vertex {len(v)}\nproperty float x\nproperty float y\nproperty float z\n"
-                  f"element face {len(f)}\nproperty list uchar int vertex_indices\nend_header\n").encode())
-        fh.write(v.astype("<f4").tobytes())
+        fh.write(header.encode())
+        fh.write(vert.tobytes())
         rec = np.zeros(len(f), dtype=[("n", "u1"), ("i", "<i4", 3)])
         rec["n"] = 3; rec["i"] = f
         fh.write(rec.tobytes())
+    if kind == "texture":
+        appearance[2].save(os.path.join(os.path.dirname(path), texture), quality=85)
 
 def dump(path, obj):
     os.makedirs(os.path.dirname(path), exist_ok=True)
@@ -35,7 +53,7 @@ for c, o in offsets.items():
     v, f, _ = source_mesh(c)
     R0, t0 = np.array(o["R_ycbv_to_src"]), np.array(o["t_ycbv_to_src"])
     vy = (v - t0) @ R0 * 1000.0
-    write_ply(f"{OUT}/models/obj_{c:06d}.ply", vy, f)
+    write_ply(f"{OUT}/models/obj_{c:06d}.ply", vy, f, source_appearance(c))
     from scipy.spatial import ConvexHull
     from scipy.spatial.distance import pdist
     hull = vy[ConvexHull(vy).vertices]

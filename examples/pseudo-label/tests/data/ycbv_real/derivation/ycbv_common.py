@@ -34,6 +34,67 @@ def read_msh(data):
     return v, f
 
 
+def read_msh_texcoords(data):
+    """The per-vertex texture coordinates of a MuJoCo .msh (v counted from the image's top)."""
+    nv, nn, nt, nf = struct.unpack_from("<4i", data, 0)
+    assert nt == nv, "one texture coordinate per vertex"
+    off = 16 + 12 * nv + 12 * nn
+    return np.frombuffer(data, "<f4", 2 * nt, off).reshape(-1, 2).astype(np.float64)
+
+
+def read_obj_corner_texcoords(text, nv):
+    """Each vertex's texture coordinates over the faces' corners that use it (OBJ `f v/vt`)."""
+    vt, corners = [], [[] for _ in range(nv)]
+    for line in text.splitlines():
+        p = line.split()
+        if p and p[0] == "vt":
+            vt.append([float(x) for x in p[1:3]])
+        elif p and p[0] == "f":
+            for c in p[1:]:
+                i, t = c.split("/")[:2]
+                corners[int(i) - 1].append(vt[int(t) - 1] if int(t) > 0 else vt[int(t)])
+    return corners
+
+
+def bilinear(img, u, v):
+    """RGB of an image at OpenGL texture coordinates (v counted from the bottom)."""
+    h, w, _ = img.shape
+    x = np.clip(u % 1.0 * w - 0.5, 0, w - 1)
+    y = np.clip((1.0 - v % 1.0) * h - 0.5, 0, h - 1)
+    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
+    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+    top = img[y0, x0] * (1 - fx) + img[y0, x1] * fx
+    bottom = img[y1, x0] * (1 - fx) + img[y1, x1] * fx
+    return top * (1 - fy) + bottom * fy
+
+
+TEXTURE_SIZE = 512  # the fixture's texture images, downscaled from 4096² (YCB_sim)
+
+
+def source_appearance(obj_id):
+    """The scan's surface: ("texture", per-vertex UV with v from the bottom, RGB image) for the
+    YCB_sim meshes, whose .msh carries one texture coordinate per vertex; ("colours", per-vertex
+    RGB 0-255) for the IsaacGymEnvs meshes, whose OBJ indexes its texture per corner: each vertex
+    takes the mean of its corners' texels (their own vertex colours are a uniform grey)."""
+    name = NAMES[obj_id]
+    if obj_id in (10, 14, 21):
+        folder = f"assets/urdf/ycb/{name}"
+        text = git_bytes(ISAAC, f"{folder}/textured.obj").decode()
+        nv = sum(1 for line in text.splitlines() if line.startswith("v "))
+        img = np.asarray(Image.open(io.BytesIO(git_bytes(ISAAC, f"{folder}/MI_{name}_MI_{name}_D.png"))).convert("RGB"), np.float64)
+        rgb = np.zeros((nv, 3))
+        for i, c in enumerate(read_obj_corner_texcoords(text, nv)):
+            if c:
+                c = np.array(c)
+                rgb[i] = bilinear(img, c[:, 0], c[:, 1]).mean(0)
+        return "colours", np.round(rgb).astype(np.uint8), None
+    uv = read_msh_texcoords(git_bytes(SIM, f"meshes/{name}.msh"))
+    uv[:, 1] = 1.0 - uv[:, 1]
+    img = Image.open(io.BytesIO(git_bytes(SIM, f"textures/{name}.png"))).convert("RGB")
+    return "texture", uv, img.resize((TEXTURE_SIZE, TEXTURE_SIZE), Image.LANCZOS)
+
+
 def read_obj(text):
     v, f = [], []
     for line in text.splitlines():
