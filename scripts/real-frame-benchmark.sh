@@ -10,7 +10,9 @@
 # `real_frames.json`; each object's run stays in OUT/obj_N, and an object whose `eval.json` is
 # there is not run again (a rerun resumes). FRAMES (800 training renders),
 # VAL_FRAMES (50), EPOCHS (32; translation EPOCHS/2), STEPS (50 per epoch) and LEVEL (4, the
-# scoring grid) scale it; IPDF names the binary (target/release/ipdf).
+# scoring grid) scale it; SYNTH_ARGS are added to both `ipdf synth` calls (e.g. "--variant
+# texture --randomize": the scans' own textures, randomised looks) and TRAIN_ARGS to both
+# `ipdf train` calls; IPDF names the binary (target/release/ipdf).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${1:-runs/real-frames}
@@ -22,6 +24,8 @@ EPOCHS=${EPOCHS:-32}
 STEPS=${STEPS:-50}
 VAL_FRAMES=${VAL_FRAMES:-50}
 LEVEL=${LEVEL:-4}
+read -r -a SYNTH_EXTRA <<< "${SYNTH_ARGS:-}"
+read -r -a TRAIN_EXTRA <<< "${TRAIN_ARGS:-}"
 OBJECTS=("$@")
 if [ ${#OBJECTS[@]} -eq 0 ]; then
     OBJECTS=(1 2 3 5 7 8 9 10 14 21)
@@ -34,7 +38,8 @@ k = json.load(open(f"{sys.argv[1]}/test/000000/scene_camera.json"))["1"]["cam_K"
 json.dump({"fx": k[0], "fy": k[4], "cx": k[2], "cy": k[5], "width": 640, "height": 480,
            "depth_scale": 0.1}, open(sys.argv[2], "w"), indent=2)
 EOF
-NETWORK=(--encoder small-cnn --input-size 48 --head 64,64 --steps-per-epoch "$STEPS" --batch-size 16)
+NETWORK=(--encoder small-cnn --input-size 48 --head 64,64 --steps-per-epoch "$STEPS" --batch-size 16
+    "${TRAIN_EXTRA[@]}")
 for id in "${OBJECTS[@]}"; do
     run="$OUT/obj_$id"
     if [ -f "$run/eval.json" ]; then
@@ -42,7 +47,7 @@ for id in "${OBJECTS[@]}"; do
     fi
     mesh=$(printf "%s/models/obj_%06d.ply" "$FIXTURE" "$id")
     scene=(--mesh "$mesh" --camera "$OUT/camera.json" --distance 0.45 1.2 --off-centre 1
-        --roll 30 --occluders 2 --distractors 2 --sensor kinect --json)
+        --roll 30 --occluders 2 --distractors 2 --sensor kinect --json "${SYNTH_EXTRA[@]}")
     "$IPDF" synth --out "$run/data" --frames "$FRAMES" --frames-per-scene "$FRAMES" "${scene[@]}" >/dev/null
     "$IPDF" synth --out "$run/data" --split val --frames "$VAL_FRAMES" --frames-per-scene "$VAL_FRAMES" --seed 1 "${scene[@]}" >/dev/null
     "$IPDF" label --dataset "$run/data" --split train --sensor kinect --json >/dev/null

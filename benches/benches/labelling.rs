@@ -34,6 +34,8 @@ fn labelling(c: &mut Criterion) {
             occluders: 0,
             sensor: Some(DepthSensor::kinect()),
             mask_errors: Some(MaskErrors::default()),
+            randomization: synth_data::Randomization::NONE,
+            borrowed_textures: Vec::new(),
         };
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
         let frame = FrameRenderer::new(&object.mesh)

@@ -50,6 +50,12 @@ pub enum RenderError {
         /// What does not match.
         reason: String,
     },
+    /// An image a camera model cannot process.
+    #[error("invalid image: {reason}")]
+    InvalidImage {
+        /// What is wrong.
+        reason: String,
+    },
     /// An image texture with the wrong number of texels or values outside `[0, 1]`.
     #[error("invalid texture: {reason}")]
     InvalidTexture {

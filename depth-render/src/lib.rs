@@ -47,6 +47,7 @@
 //! ```
 
 mod camera;
+mod colour_camera;
 mod compare;
 mod error;
 mod mask_errors;
@@ -66,6 +67,7 @@ mod symmetry;
 mod tile_cast;
 
 pub use camera::PinholeCamera;
+pub use colour_camera::ImageChain;
 pub use compare::{depth_discrepancy, unproject, visible_surface_discrepancy};
 pub use error::RenderError;
 pub use mask_errors::MaskErrors;

@@ -386,7 +386,7 @@ fn round(x: f32) -> f32 {
 }
 
 /// Four standard normal numbers from four uniform ones (Box–Muller).
-fn gaussians(rng: &mut ChaCha8Rng) -> [f32; 4] {
+pub(crate) fn gaussians(rng: &mut ChaCha8Rng) -> [f32; 4] {
     let mut pair = || {
         let (u1, u2): (f32, f32) = (rng.random(), rng.random());
         let radius = (-2.0 * (1.0 - u1).ln()).sqrt();

@@ -1,6 +1,7 @@
-//! Shaded RGB images: Lambert + ambient under one directional light, with per-instance
-//! [`Material`]s (a flat colour, vertex colours, an image texture, or a procedural pattern that
-//! breaks an object's visual symmetry without changing its geometry).
+//! Shaded RGB images: ambient + Lambert + a Blinn–Phong highlight under one coloured
+//! directional light, with per-instance [`Material`]s (a flat colour, vertex colours, an image
+//! texture at the mesh's texture coordinates or projected onto a mesh without them, or a
+//! procedural pattern that breaks an object's visual symmetry without changing its geometry).
 use nalgebra::{Point3, Vector3};
 
 use crate::surface::SurfacePoint;
@@ -15,6 +16,15 @@ pub enum Material {
     VertexColors,
     /// An image sampled at the mesh's texture coordinates.
     Image(ImageTexture),
+    /// An image repeated every `tile` metres over model space and projected onto each
+    /// triangle along the model axis nearest its normal (a triplanar mapping): a texture for
+    /// meshes without texture coordinates (tables, distractors).
+    Projected {
+        /// The image.
+        texture: ImageTexture,
+        /// Model-space size of one repeat (m).
+        tile: f32,
+    },
     /// Model-space cubes of side `cell` (metres), each a colour drawn from a seeded hash: a
     /// solid texture that makes every orientation of a symmetric shape look different (the
     /// paper's "Texture" datasets).
@@ -87,26 +97,38 @@ pub struct Lighting {
     pub ambient: f32,
     /// Diffuse (Lambert) fraction of the albedo.
     pub diffuse: f32,
+    /// The light's colour, multiplying its diffuse and specular parts (white: `[1, 1, 1]`).
+    pub colour: [f32; 3],
+    /// Strength of the Blinn–Phong highlight, added in the light's colour (0: matte).
+    pub specular: f32,
+    /// Blinn–Phong exponent: larger is a smaller, sharper highlight.
+    pub shininess: f32,
     /// Colour of pixels where nothing was hit (8-bit RGB).
     pub background: [u8; 3],
 }
 
 impl Default for Lighting {
-    /// A light above and slightly left of the camera, 30% ambient, black background.
+    /// A white light above and slightly left of the camera, 30% ambient, matte surfaces, black
+    /// background.
     fn default() -> Self {
         Self {
             towards_light: Vector3::new(-0.3, -0.6, -1.0),
             ambient: 0.3,
             diffuse: 0.7,
+            colour: [1.0; 3],
+            specular: 0.0,
+            shininess: 20.0,
             background: [0, 0, 0],
         }
     }
 }
 
 impl Scene {
-    /// The shaded 8-bit RGB image of `rendering`: `albedo · (ambient + diffuse · max(0, n·l))`,
-    /// with `n` the interpolated vertex normal (the face normal for meshes without normals)
-    /// turned towards the camera. `materials[k]` colours `instances[k]`.
+    /// The shaded 8-bit RGB image of `rendering`: per channel, `albedo · (ambient + diffuse ·
+    /// max(0, n·l) · colour) + specular · max(0, n·h)^shininess · colour` (the highlight only
+    /// where `n·l > 0`), with `n` the interpolated vertex normal (the face normal for meshes
+    /// without normals) turned towards the camera and `h` the half-way vector between the
+    /// light and the camera. `materials[k]` colours `instances[k]`.
     pub fn shade(
         &self,
         camera: &PinholeCamera,
@@ -129,7 +151,9 @@ impl Scene {
             let missing = match material {
                 Material::VertexColors => mesh.is_some_and(|m| m.colors().is_none()),
                 Material::Image(_) => mesh.is_some_and(|m| m.uvs().is_none()),
-                Material::Uniform(_) | Material::Patches { .. } => false,
+                Material::Uniform(_) | Material::Projected { .. } | Material::Patches { .. } => {
+                    false
+                }
             };
             if missing {
                 return Err(RenderError::RenderingMismatch {
@@ -147,9 +171,19 @@ impl Scene {
             if normal.dot(&point.view) > 0.0 {
                 normal = -normal;
             }
-            let intensity =
-                lighting.ambient + lighting.diffuse * normal.dot(&light).max(0.0) as f32;
-            albedo.map(|c| (c * intensity * 255.0).round().clamp(0.0, 255.0) as u8)
+            let lambert = normal.dot(&light).max(0.0) as f32;
+            let highlight = if lighting.specular > 0.0 && lambert > 0.0 {
+                let half = (light - point.view.normalize()).normalize();
+                lighting.specular * (normal.dot(&half).max(0.0) as f32).powf(lighting.shininess)
+            } else {
+                0.0
+            };
+            std::array::from_fn(|k| {
+                let light = lighting.colour[k];
+                let c = albedo[k] * (lighting.ambient + lighting.diffuse * lambert * light)
+                    + highlight * light;
+                (c * 255.0).round().clamp(0.0, 255.0) as u8
+            })
         })
     }
 }
@@ -190,14 +224,34 @@ fn albedo(mesh: &TriangleMesh, point: &SurfacePoint, material: &Material) -> [f3
             let [u, v] = interpolate(mesh.uvs().unwrap_or_default(), mesh, point);
             texture.sample(u, v)
         }
+        Material::Projected { texture, tile } => {
+            let p = model_point(mesh, point);
+            let n = mesh.triangle_normal(point.triangle).abs();
+            // The two axes across the one the triangle faces most.
+            let (a, b) = if n.x >= n.y && n.x >= n.z {
+                (1, 2)
+            } else if n.y >= n.z {
+                (0, 2)
+            } else {
+                (0, 1)
+            };
+            let tile = f64::from(*tile);
+            texture.sample((p[a] / tile) as f32, (p[b] / tile) as f32)
+        }
         Material::Patches { cell, seed } => {
-            let corners = mesh.corners(point.triangle);
-            let p: Vector3<f64> = (0..3)
-                .map(|c| corners[c].coords.cast::<f64>() * point.barycentric[c])
-                .sum();
-            patch_color(&Point3::from(p), f64::from(*cell), *seed)
+            patch_color(&model_point(mesh, point), f64::from(*cell), *seed)
         }
     }
+}
+
+/// The surface point in the mesh's frame.
+fn model_point(mesh: &TriangleMesh, point: &SurfacePoint) -> Point3<f64> {
+    let corners = mesh.corners(point.triangle);
+    Point3::from(
+        (0..3)
+            .map(|c| corners[c].coords.cast::<f64>() * point.barycentric[c])
+            .sum::<Vector3<f64>>(),
+    )
 }
 
 /// The colour of the model-space cube of side `cell` holding `p`: a hash of its integer

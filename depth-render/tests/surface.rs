@@ -233,3 +233,105 @@ fn the_patch_texture_breaks_visual_but_not_geometric_symmetry() {
         "{colour_differs} of {visible}"
     );
 }
+
+#[test]
+fn a_coloured_light_and_its_highlight_follow_blinn_phong() {
+    // A white sphere straight ahead, lit from the camera: at the pixel facing the camera n, l
+    // and h all point back at it, so n·l = n·h = 1 and each channel is
+    // albedo · (ambient + diffuse · colour) + specular · colour.
+    let camera = camera();
+    let scene = Scene::new(&[primitives::sphere(0.05, 5).unwrap()]);
+    let instances = [Instance::new(0, Isometry3::translation(0.0, 0.0, 0.5))];
+    let out = scene
+        .render(&camera, &instances, Window::full(&camera))
+        .unwrap();
+    let colour = [1.0, 0.6, 0.2];
+    let lighting = |specular| Lighting {
+        towards_light: Vector3::new(0.0, 0.0, -1.0),
+        ambient: 0.1,
+        diffuse: 0.5,
+        colour,
+        specular,
+        shininess: 30.0,
+        background: [0, 0, 0],
+    };
+    let shade = |specular| {
+        scene
+            .shade(
+                &camera,
+                &instances,
+                &[Material::Uniform([0.8; 3])],
+                &lighting(specular),
+                &out,
+            )
+            .unwrap()
+    };
+    let (matte, shiny) = (shade(0.0), shade(0.3));
+    // The pixel nearest the sphere's centre's projection (40.2, 30.6).
+    let centre = (30 * camera.width + 40) as usize;
+    for k in 0..3 {
+        let expected =
+            |specular: f32| 255.0 * (0.8 * (0.1 + 0.5 * colour[k]) + specular * colour[k]);
+        assert!(
+            (f32::from(matte[centre][k]) - expected(0.0)).abs() <= 1.5,
+            "{matte:?}"
+        );
+        assert!(
+            (f32::from(shiny[centre][k]) - expected(0.3)).abs() <= 2.5,
+            "{k}"
+        );
+    }
+    // The highlight is a spot: near the rim (n·h small) both agree within rounding.
+    let rim = (30 * camera.width + 40 + 35) as usize;
+    assert!(out.instance[rim].is_some());
+    for k in 0..3 {
+        assert!(
+            matte[rim][k].abs_diff(shiny[rim][k]) <= 2,
+            "{:?} {:?}",
+            matte[rim],
+            shiny[rim]
+        );
+    }
+}
+
+#[test]
+fn projected_textures_repeat_over_model_space_on_meshes_without_uvs() {
+    // A 64² image, red on its left half (u < 0.5) and green on its right, repeated every 0.1 m
+    // on a 5 cm cube facing the camera: on the face, u = x / 0.1 wraps to [0.75, 1) for x < 0
+    // (green) and lies in [0, 0.25] for x > 0 (red).
+    let camera = camera();
+    let cube = primitives::cuboid([0.05, 0.05, 0.05]).unwrap();
+    assert!(cube.uvs().is_none());
+    let texels = (0..64 * 64)
+        .map(|i| {
+            if i % 64 < 32 {
+                [1.0, 0.0, 0.0]
+            } else {
+                [0.0, 1.0, 0.0]
+            }
+        })
+        .collect();
+    let texture = ImageTexture::new(64, 64, texels).unwrap();
+    let scene = Scene::new(&[cube]);
+    let pose = Isometry3::translation(0.0, 0.0, 0.4);
+    let instances = [Instance::new(0, pose)];
+    let out = scene
+        .render(&camera, &instances, Window::full(&camera))
+        .unwrap();
+    let lighting = Lighting {
+        ambient: 1.0,
+        diffuse: 0.0,
+        ..Lighting::default()
+    };
+    let material = Material::Projected { texture, tile: 0.1 };
+    let rgb = scene
+        .shade(&camera, &instances, &[material], &lighting, &out)
+        .unwrap();
+    for (x, expected) in [(-0.015, [0, 255, 0]), (0.015, [255, 0, 0])] {
+        let pixel = camera
+            .project(&(pose * Point3::new(x, 0.0, -0.025)))
+            .unwrap();
+        let i = (pixel.y as u32 * camera.width + pixel.x as u32) as usize;
+        assert_eq!(rgb[i], expected, "x = {x}");
+    }
+}

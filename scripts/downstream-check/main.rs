@@ -87,6 +87,8 @@ fn check_labelled_render(mesh: &TriangleMesh) -> Result<()> {
         occluders: 0,
         sensor: None,
         mask_errors: None,
+        randomization: synth_data::Randomization::NONE,
+        borrowed_textures: Vec::new(),
     };
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
     let frame =

@@ -22,6 +22,8 @@ fn main() -> Result<()> {
         occluders: 0,
         sensor: Some(DepthSensor::kinect()),
         mask_errors: Some(MaskErrors::default()),
+        randomization: synth_data::Randomization::NONE,
+        borrowed_textures: Vec::new(),
     };
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
     let frame = FrameRenderer::new(&object.mesh)?.render(

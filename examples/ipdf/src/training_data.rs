@@ -715,6 +715,8 @@ pub fn rendered_examples(
         occluders: 0,
         sensor: None,
         mask_errors: None,
+        randomization: synth_data::Randomization::NONE,
+        borrowed_textures: Vec::new(),
     };
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let (width, height) = (camera.width as usize, camera.height as usize);

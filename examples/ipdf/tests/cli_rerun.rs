@@ -50,6 +50,8 @@ fn a_synth_rerun_with_other_options_is_refused_and_an_identical_one_resumes() {
         (args("2", &["--elevation", "20", "80"]), "elevation_deg"),
         (args("2", &["--off-centre", "1"]), "off_centre"),
         (args("2", &["--roll", "30"]), "roll_deg"),
+        (args("2", &["--randomize"]), "randomize"),
+        (args("2", &["--randomize", "lights,camera"]), "randomize"),
     ] {
         assert_fails(&extra, option);
         assert_fails(&extra, "train/synth_options.json");
@@ -57,6 +59,9 @@ fn a_synth_rerun_with_other_options_is_refused_and_an_identical_one_resumes() {
     // Nothing was rendered by the refused runs: scenes 0 and 1 only.
     let scenes = std::fs::read_dir(data.join("train")).unwrap().count();
     assert_eq!(scenes, 3, "two scenes and synth_options.json");
+    // An unknown part of the randomisation is refused, naming the option and the part.
+    assert_fails(&args("2", &["--randomize", "lights,fog"]), "randomize");
+    assert_fails(&args("2", &["--randomize", "lights,fog"]), "fog");
     // Another split is another set of options.
     let val = synth(&data, "can,box", 1, &["--split", "val", "--seed", "1"]);
     assert_eq!(val["rendered"], 2);

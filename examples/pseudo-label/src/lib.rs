@@ -29,6 +29,8 @@
 //!     occluders: 0,
 //!     sensor: Some(DepthSensor::kinect()),
 //!     mask_errors: Some(MaskErrors::default()),
+//!     randomization: synth_data::Randomization::NONE,
+//!     borrowed_textures: Vec::new(),
 //! };
 //! let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
 //! let frame = FrameRenderer::new(&object.mesh)?.render(&camera, &ViewRange::default(), &style, &mut rng)?;

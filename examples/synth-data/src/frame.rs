@@ -1,8 +1,8 @@
 //! One synthetic frame: the object resting on a tabletop, a camera looking at it from a random
 //! elevation and distance, optional distractors, rendered into BOP images and annotations.
 use depth_render::{
-    DepthSensor, Instance, Lighting, MaskErrors, Material, PinholeCamera, Primitive, RestingPose,
-    Scene, TriangleMesh, Window, resting_poses,
+    DepthSensor, ImageTexture, Instance, MaskErrors, Material, PinholeCamera, Primitive,
+    RestingPose, Scene, TriangleMesh, Window, resting_poses,
 };
 use nalgebra::{Isometry3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use rand::{Rng, RngExt};
@@ -10,6 +10,7 @@ use rand::{Rng, RngExt};
 use bop_dataset::{GtInfo, mask_box};
 
 use crate::SynthError;
+use crate::randomize::Randomization;
 
 /// Where the camera may be, relative to the object.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -145,6 +146,11 @@ pub struct FrameStyle {
     pub sensor: Option<DepthSensor>,
     /// A detector's errors on the visible mask, or the exact mask.
     pub mask_errors: Option<MaskErrors>,
+    /// The parts of the frame's look drawn at random ([`Randomization::NONE`]: the plain look).
+    pub randomization: Randomization,
+    /// Textures that distractors may wear when `randomization.textures` is on (the objects'
+    /// own).
+    pub borrowed_textures: Vec<ImageTexture>,
 }
 
 impl FrameRenderer {
@@ -202,23 +208,36 @@ impl FrameRenderer {
         let camera_from_world = look_at(&centre, view, rng);
         let camera_from_world = reframe(camera_from_world, &centre, self.radius, camera, view, rng);
         let pose = camera_from_world * world_from_object;
-        let mut instances = vec![Instance::new(0, pose), Instance::new(1, camera_from_world)];
-        let mut materials = vec![style.material.clone(), Material::Uniform([0.55, 0.5, 0.45])];
         let others =
             self.place_others(style, (&world_from_object, (x, y)), &camera_from_world, rng);
+        // The look is drawn after the geometry: the same seed shows the same scene.
+        let random = &style.randomization;
+        let look = random.draw_look(rng, camera.width, camera.height);
+        let mut instances = vec![Instance::new(0, pose), Instance::new(1, camera_from_world)];
+        let mut materials = vec![style.material.clone(), look.table];
         for (instance, material) in others {
             instances.push(instance);
-            materials.push(material);
+            materials.push(if random.textures {
+                Randomization::draw_surface(rng, &style.borrowed_textures)
+            } else {
+                material
+            });
         }
         let full = Window::full(camera);
         let rendering = self.scene.render(camera, &instances, full)?;
-        let rgb = self.scene.shade(
-            camera,
-            &instances,
-            &materials,
-            &Lighting::default(),
-            &rendering,
-        )?;
+        let mut rgb =
+            self.scene
+                .shade(camera, &instances, &materials, &look.lighting, &rendering)?;
+        if let Some(background) = &look.background {
+            for ((pixel, hit), behind) in rgb.iter_mut().zip(&rendering.instance).zip(background) {
+                if hit.is_none() {
+                    *pixel = *behind;
+                }
+            }
+        }
+        if let Some(chain) = &look.camera {
+            rgb = chain.apply(&rgb, camera.width, camera.height, rng.random())?;
+        }
         let mask_visib: Vec<bool> = rendering.instance.iter().map(|&i| i == Some(0)).collect();
         let mask = self.silhouette(camera, &pose)?;
         let width = camera.width as usize;
@@ -512,6 +531,8 @@ mod tests {
             occluders,
             sensor: None,
             mask_errors: None,
+            randomization: Randomization::NONE,
+            borrowed_textures: Vec::new(),
         };
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
         (0..24)

@@ -39,10 +39,13 @@
 mod error;
 mod frame;
 mod objects;
+mod procedural;
+mod randomize;
 mod synthesize;
 pub mod trials;
 
 pub use error::SynthError;
 pub use frame::{Frame, FrameRenderer, FrameStyle, ViewRange};
 pub use objects::{ObjectKind, SynthObject};
+pub use randomize::Randomization;
 pub use synthesize::{SYNTH_OPTIONS_FILE, SynthOptions, SynthSummary, Variant, synthesize};

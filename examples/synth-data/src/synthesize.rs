@@ -3,14 +3,14 @@ use std::collections::BTreeMap;
 use std::path::{Component, Path};
 use std::time::Instant;
 
-use depth_render::{DepthSensor, MaskErrors, Material};
+use depth_render::{DepthSensor, ImageTexture, MaskErrors, Material};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde_json::{Value, json};
 
 use crate::frame::{Frame, FrameRenderer, FrameStyle, ViewRange};
-use crate::{SynthError, SynthObject};
+use crate::{Randomization, SynthError, SynthObject};
 use bop_dataset::{
     BopCamera, BopDataset, DatasetInfo, FileError, GtInfo, GtInstance, Intrinsics, ModelInfo,
     Progress, SceneDir, as_recorded, check_recorded, image_file_complete, read_scene_camera,
@@ -61,6 +61,8 @@ pub struct SynthOptions {
     pub sensor: Option<DepthSensor>,
     /// A detector's errors on the visible masks (`mask_visib`), or exact masks.
     pub mask_errors: Option<MaskErrors>,
+    /// The parts of each frame's look drawn at random (domain randomisation).
+    pub randomization: Randomization,
     /// Seed of everything random.
     pub seed: u64,
 }
@@ -84,7 +86,7 @@ impl SynthOptions {
 
 impl Default for SynthOptions {
     /// 1,000 frames per object in one scene, uniform colours, [`SynthOptions::t_less_camera`],
-    /// [`ViewRange::default`], no distractors, clean depth, exact masks, seed 0.
+    /// [`ViewRange::default`], no distractors, clean depth, exact masks, the plain look, seed 0.
     fn default() -> Self {
         Self {
             frames: 1000,
@@ -96,6 +98,7 @@ impl Default for SynthOptions {
             occluders: 0,
             sensor: None,
             mask_errors: None,
+            randomization: Randomization::NONE,
             seed: 0,
         }
     }
@@ -172,6 +175,9 @@ fn split_options(objects: &[SynthObject], options: &SynthOptions) -> Value {
     }
     if options.view.roll_deg > 0.0 {
         value["roll_deg"] = json!(options.view.roll_deg);
+    }
+    if !options.randomization.is_none() {
+        value["randomize"] = json!(options.randomization.names());
     }
     as_recorded(value)
 }
@@ -262,9 +268,16 @@ pub fn synthesize(
     let scenes_per_object = options.frames.div_ceil(options.frames_per_scene);
     progress.set_total((options.frames * objects.len()) as u64, 0);
     let (mut rendered, mut repaired) = (0, 0);
+    let borrowed: Vec<ImageTexture> = objects
+        .iter()
+        .filter_map(|object| match &object.appearance {
+            Some(Material::Image(texture)) => Some(texture.clone()),
+            _ => None,
+        })
+        .collect();
     for (k, object) in objects.iter().enumerate() {
         let renderer = FrameRenderer::new(&object.mesh)?;
-        let style = frame_style(options, k, object);
+        let style = frame_style(options, k, object, &borrowed);
         for chunk in 0..scenes_per_object {
             let scene_id = (k * scenes_per_object + chunk) as u32;
             let first = chunk * options.frames_per_scene;
@@ -293,8 +306,14 @@ pub fn synthesize(
 
 /// How object `k` (from 0) looks in its frames: its flat colour, or its own surface (a mesh
 /// file's texture or vertex colours) and else colour patches of its own; and the options'
-/// distractors, occluders, sensor and mask errors.
-fn frame_style(options: &SynthOptions, k: usize, object: &SynthObject) -> FrameStyle {
+/// distractors, occluders, sensor, mask errors and randomisation, whose distractors may wear
+/// the `borrowed` textures.
+fn frame_style(
+    options: &SynthOptions,
+    k: usize,
+    object: &SynthObject,
+    borrowed: &[ImageTexture],
+) -> FrameStyle {
     let material = match options.variant {
         Variant::Uniform => Material::Uniform(object.colour),
         Variant::Texture => object.appearance.clone().unwrap_or(Material::Patches {
@@ -308,6 +327,8 @@ fn frame_style(options: &SynthOptions, k: usize, object: &SynthObject) -> FrameS
         occluders: options.occluders,
         sensor: options.sensor,
         mask_errors: options.mask_errors,
+        randomization: options.randomization,
+        borrowed_textures: borrowed.to_vec(),
     }
 }
 

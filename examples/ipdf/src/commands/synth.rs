@@ -9,7 +9,9 @@ use bop_dataset::{camera_from_json, read_json};
 use depth_render::{MaskErrors, SensorPreset, check_mesh_size};
 use ipdf::progress::bar;
 use serde_json::json;
-use synth_data::{ObjectKind, SynthObject, SynthOptions, Variant, ViewRange, synthesize};
+use synth_data::{
+    ObjectKind, Randomization, SynthObject, SynthOptions, Variant, ViewRange, synthesize,
+};
 
 /// Arguments of `ipdf synth`.
 #[derive(Debug, clap::Args)]
@@ -82,6 +84,13 @@ pub struct SynthArgs {
     /// Roll the camera about its line of sight by up to this many degrees either way.
     #[arg(long, default_value_t = 0.0)]
     pub roll: f64,
+    /// Domain randomisation, drawn per frame: `all` (alone: `--randomize`) or a comma list of
+    /// `lights` (direction, strength, colour, ambient, highlight), `backgrounds` (procedural
+    /// table and background textures), `textures` (distractors and occluders in procedural
+    /// textures or the objects' own) and `camera` (blur, exposure, white balance, noise, tone
+    /// curve, JPEG quality). The objects keep their `--variant` look.
+    #[arg(long, num_args = 0..=1, default_missing_value = "all", value_name = "PARTS")]
+    pub randomize: Option<String>,
 }
 
 /// Runs `ipdf synth`; returns `{"dataset", "split", "frames", "rendered", "scenes",
@@ -140,6 +149,10 @@ pub fn run(args: &SynthArgs, seed: u64) -> Result<serde_json::Value> {
             max_shift_px: args.mask_errors,
             ..MaskErrors::default()
         }),
+        randomization: match &args.randomize {
+            Some(parts) => Randomization::parse(parts)?,
+            None => Randomization::NONE,
+        },
         seed,
     };
     let dataset = BopDataset::new(&args.out);
