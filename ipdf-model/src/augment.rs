@@ -1,5 +1,5 @@
-//! Training-time image augmentation: occlusion rectangles (as in the pseudo-label paper) and
-//! mild colour jitter, drawn from a caller's seeded generator.
+//! Training-time image augmentation: occlusion rectangles (as in the pseudo-label paper), mild
+//! colour jitter and a Gaussian blur, drawn from a caller's seeded generator.
 use rand::{Rng, RngExt};
 use serde::{Deserialize, Serialize};
 use tch::{Kind, Tensor};
@@ -14,6 +14,13 @@ pub struct Augmentation {
     /// Colour jitter strength `j`: brightness × U(1 − j, 1 + j) per image and a gain
     /// × U(1 − j/2, 1 + j/2) per channel (0 disables).
     pub colour_jitter: f64,
+    /// Fraction of the images blurred (0 disables), each by a Gaussian of σ uniform in
+    /// `(0, blur_sigma]` pixels of the crop: a real camera's focus and motion blur.
+    #[serde(default)]
+    pub blur_probability: f64,
+    /// Largest σ of the blur (crop pixels).
+    #[serde(default)]
+    pub blur_sigma: f64,
 }
 
 impl Augmentation {
@@ -22,6 +29,8 @@ impl Augmentation {
         occlusion_probability: 0.0,
         occlusion_area: [0.1, 0.5],
         colour_jitter: 0.0,
+        blur_probability: 0.0,
+        blur_sigma: 0.0,
     };
 
     /// Colour jitter only (`j = 0.1`).
@@ -38,7 +47,11 @@ impl Augmentation {
 
     /// Whether it changes anything.
     pub fn is_identity(&self) -> bool {
-        self.occlusion_probability <= 0.0 && self.colour_jitter <= 0.0
+        self.occlusion_probability <= 0.0 && self.colour_jitter <= 0.0 && !self.blurs()
+    }
+
+    fn blurs(&self) -> bool {
+        self.blur_probability > 0.0 && self.blur_sigma > 0.0
     }
 }
 
@@ -49,7 +62,8 @@ impl Default for Augmentation {
 }
 
 /// `images` (`[B, 3, S, S]` in `[0, 1]`) with occluded rectangles set to 0 (the masked
-/// background) and colours jittered, clamped to `[0, 1]`.
+/// background), colours jittered and some blurred, clamped to `[0, 1]`. Without blur, the
+/// generator is drawn from as before blur existed.
 pub fn augment<R: Rng + ?Sized>(images: &Tensor, options: &Augmentation, rng: &mut R) -> Tensor {
     if options.is_identity() {
         return images.shallow_clone();
@@ -58,7 +72,12 @@ pub fn augment<R: Rng + ?Sized>(images: &Tensor, options: &Augmentation, rng: &m
     let (batch, side) = (size[0] as usize, size[2] as usize);
     let mut keep = vec![1.0f32; batch * side * side];
     let mut gains = vec![1.0f32; batch * 3];
-    for (plane, gain) in keep.chunks_mut(side * side).zip(gains.chunks_mut(3)) {
+    let mut blurs = Vec::new();
+    for (i, (plane, gain)) in keep
+        .chunks_mut(side * side)
+        .zip(gains.chunks_mut(3))
+        .enumerate()
+    {
         if rng.random_bool(options.occlusion_probability.clamp(0.0, 1.0)) {
             occlude(plane, side, options.occlusion_area, rng);
         }
@@ -69,6 +88,9 @@ pub fn augment<R: Rng + ?Sized>(images: &Tensor, options: &Augmentation, rng: &m
                 *g = (brightness * rng.random_range(1.0 - j / 2.0..1.0 + j / 2.0)) as f32;
             }
         }
+        if options.blurs() && rng.random_bool(options.blur_probability.clamp(0.0, 1.0)) {
+            blurs.push((i as i64, rng.random_range(0.0..options.blur_sigma)));
+        }
     }
     let device = images.device();
     let keep = Tensor::from_slice(&keep)
@@ -77,7 +99,33 @@ pub fn augment<R: Rng + ?Sized>(images: &Tensor, options: &Augmentation, rng: &m
     let gains = Tensor::from_slice(&gains)
         .reshape([batch as i64, 3, 1, 1])
         .to_device(device);
-    (images.to_kind(Kind::Float) * keep * gains).clamp(0.0, 1.0)
+    let mut out = images.to_kind(Kind::Float);
+    for (i, sigma) in blurs {
+        let blurred = gaussian_blur(&out.narrow(0, i, 1), sigma);
+        out = out.slice_scatter(&blurred, 0, i, i + 1, 1);
+    }
+    (out * keep * gains).clamp(0.0, 1.0)
+}
+
+/// `image` (`[1, C, S, S]`) convolved with a normalised Gaussian of `sigma` pixels, truncated
+/// at 3σ (and at the image's size), zero outside the image (the masked background).
+fn gaussian_blur(image: &Tensor, sigma: f64) -> Tensor {
+    let size = image.size();
+    let (channels, side) = (size[1], size[2]);
+    let radius = ((3.0 * sigma).ceil() as i64).clamp(1, (side - 1).max(1));
+    let taps: Vec<f32> = (-radius..=radius)
+        .map(|x| (-((x * x) as f64) / (2.0 * sigma * sigma)).exp() as f32)
+        .collect();
+    let total: f32 = taps.iter().sum();
+    let n = taps.len() as i64;
+    let row = Tensor::from_slice(&taps.iter().map(|t| t / total).collect::<Vec<_>>())
+        .to_device(image.device());
+    let along = |t: &Tensor, shape: [i64; 4], padding: [i64; 2]| {
+        let weight = row.reshape(shape).repeat([channels, 1, 1, 1]);
+        t.conv2d(&weight, None::<Tensor>, [1, 1], padding, [1, 1], channels)
+    };
+    let horizontal = along(image, [1, 1, 1, n], [0, radius]);
+    along(&horizontal, [1, 1, n, 1], [radius, 0])
 }
 
 /// Zeroes one axis-aligned rectangle of `plane` (`side × side`) with an area fraction uniform in
@@ -143,5 +191,68 @@ mod tests {
         assert!(f64::try_from(out.max()).unwrap() <= 1.0);
         assert_eq!(f64::try_from(out.narrow(3, 0, 8).abs().max()).unwrap(), 0.0);
         assert!(f64::try_from((&out - &base).abs().max()).unwrap() > 0.01);
+    }
+
+    #[test]
+    fn blur_spreads_a_point_by_sigma_and_keeps_its_mass() {
+        // A point in the middle of a 41² image: blurred, its mass stays 1 and its second
+        // moment along each axis is σ² (a Gaussian's), the kernel being wide enough (3σ).
+        let mut point = vec![0.0f32; 3 * 41 * 41];
+        for c in 0..3 {
+            point[c * 41 * 41 + 20 * 41 + 20] = 1.0;
+        }
+        let image = Tensor::from_slice(&point).reshape([1, 3, 41, 41]);
+        let sigma = 1.7;
+        let out = gaussian_blur(&image, sigma);
+        assert_eq!(out.size(), vec![1, 3, 41, 41]);
+        let red = Vec::<f32>::try_from(out.select(1, 0).flatten(0, -1)).unwrap();
+        let mass: f64 = red.iter().map(|&v| f64::from(v)).sum();
+        let moment = |axis: usize| -> f64 {
+            red.iter()
+                .enumerate()
+                .map(|(i, &v)| {
+                    let d = [i % 41, i / 41][axis] as f64 - 20.0;
+                    f64::from(v) * d * d
+                })
+                .sum()
+        };
+        assert!((mass - 1.0).abs() < 1e-5, "{mass}");
+        for axis in 0..2 {
+            assert!(
+                (moment(axis) / (sigma * sigma) - 1.0).abs() < 0.02,
+                "{}",
+                moment(axis)
+            );
+        }
+    }
+
+    #[test]
+    fn blur_touches_the_share_asked_for_and_nothing_else_without_it() {
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let images = Tensor::rand([100, 3, 12, 12], (Kind::Float, tch::Device::Cpu));
+        let options = Augmentation {
+            blur_probability: 0.5,
+            blur_sigma: 1.5,
+            ..Augmentation::NONE
+        };
+        let out = augment(&images, &options, &mut rng);
+        let changed =
+            Vec::<f32>::try_from((&out - &images).abs().amax([1, 2, 3].as_slice(), false))
+                .unwrap()
+                .iter()
+                .filter(|&&d| d > 1e-6)
+                .count();
+        // Half of 100: binomial sd 5.
+        assert!((35..=65).contains(&changed), "{changed} blurred");
+        // Without blur the generator is drawn from as before: colour jitter alone leaves it
+        // where colour jitter with a blur of probability 0 does.
+        let (mut a, mut b) = (ChaCha8Rng::seed_from_u64(6), ChaCha8Rng::seed_from_u64(6));
+        let no_blur = Augmentation {
+            blur_sigma: 2.0,
+            ..Augmentation::COLOUR
+        };
+        let _ = augment(&images, &Augmentation::COLOUR, &mut a);
+        let _ = augment(&images, &no_blur, &mut b);
+        assert_eq!(a.random::<u64>(), b.random::<u64>());
     }
 }

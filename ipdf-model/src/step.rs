@@ -51,10 +51,14 @@ pub(crate) fn validate_optimisation(
     if !(0.0..=1.0).contains(&a.occlusion_probability)
         || !(0.0..=0.5).contains(&a.colour_jitter)
         || !areas_ok
+        || !(0.0..=1.0).contains(&a.blur_probability)
+        || !(0.0..=10.0).contains(&a.blur_sigma)
     {
         return Err(ModelError::option(
             "augmentation",
-            format!("{a:?}: probability and areas need [0, 1], jitter [0, 0.5]"),
+            format!(
+                "{a:?}: probabilities and areas need [0, 1], jitter [0, 0.5], blur σ [0, 10] px"
+            ),
         ));
     }
     Ok(())

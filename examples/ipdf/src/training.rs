@@ -85,6 +85,8 @@ pub struct TrainRequest {
     pub learning_rate: f64,
     /// The paper's occlusion augmentation, else colour augmentation only.
     pub occlusion: bool,
+    /// Blur half the crops by a Gaussian of σ up to this many crop pixels (0: none).
+    pub blur: f64,
     /// What the crops are cut around: masks, or boxes (jittered at training, as a detector's
     /// boxes are imprecise; the validation crops in the boxes as they are).
     pub crop: CropSource,
@@ -116,12 +118,17 @@ impl TrainRequest {
         }
     }
 
-    /// The paper's occlusion augmentation, or colour augmentation only.
+    /// The paper's occlusion augmentation, or colour augmentation only; and the blur asked for.
     fn augmentation(&self) -> Augmentation {
-        if self.occlusion {
+        let base = if self.occlusion {
             Augmentation::OCCLUSION
         } else {
             Augmentation::COLOUR
+        };
+        Augmentation {
+            blur_probability: if self.blur > 0.0 { 0.5 } else { 0.0 },
+            blur_sigma: self.blur,
+            ..base
         }
     }
 }

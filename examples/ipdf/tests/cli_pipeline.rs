@@ -224,6 +224,7 @@ fn a_miniature_pipeline_writes_every_artefact() {
     for (flag, value, expected) in [
         ("--input-size", "0", "input_size"),
         ("--batch-size", "0", "--batch-size"),
+        ("--blur", "11", "--blur"),
         ("--learning-rate", "0", "schedule.peak"),
         ("--translation-learning-rate", "nan", "schedule.peak"),
     ] {

@@ -83,6 +83,10 @@ pub struct TrainArgs {
     /// The paper's occlusion augmentation (rectangles over 10–50% of 80% of the crops).
     #[arg(long)]
     pub occlusion: bool,
+    /// Blur half the training crops (drawn per batch) by a Gaussian of σ uniform up to this many
+    /// crop pixels, as real cameras' focus and motion blur soften images (0: none).
+    #[arg(long, default_value_t = 0.0)]
+    pub blur: f64,
     /// What the crops are cut around: the visible mask (background black), or the visible box
     /// (`bbox_visib`, else the mask's box) with everything inside it, each training box moved
     /// at random by up to 10% as a detector's are — for models that will be given a
@@ -114,6 +118,9 @@ pub fn run(args: &TrainArgs, seed: u64) -> Result<serde_json::Value> {
     if args.batch_size == 0 {
         bail!("--batch-size must be at least 1");
     }
+    if !(0.0..=10.0).contains(&args.blur) {
+        bail!("--blur must be in 0..=10 crop pixels, got {}", args.blur);
+    }
     if args.out.exists() && !args.out.is_dir() {
         bail!("--out {}: exists and is not a folder", args.out.display());
     }
@@ -138,6 +145,7 @@ pub fn run(args: &TrainArgs, seed: u64) -> Result<serde_json::Value> {
         batch_size: args.batch_size,
         learning_rate: args.learning_rate,
         occlusion: args.occlusion,
+        blur: args.blur,
         crop: args.crop,
         query_level: args.query_level,
         translation_queries: args.translation_queries as usize,

@@ -310,6 +310,7 @@ fn train_models(out: &Path, plan: &Plan, runs: &[ModelRun], seed: u64) -> Result
             batch_size: plan.batch_size,
             learning_rate: plan.learning_rate_of(target),
             occlusion: run.occlusion,
+            blur: 0.0,
             crop: CropSource::Mask,
             query_level: plan.query_level,
             translation_queries: plan.translation_queries,
