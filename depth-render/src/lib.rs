@@ -12,15 +12,18 @@
 //! - [`Scene`]: one BVH per mesh (obvhs' PLOC builder), instanced by model→camera poses and
 //!   rendered over any pixel [`Window`] by casting the rays of 16×16-pixel tiles together:
 //!   front-to-back frustum traversal and an exact, watertight ray–triangle test. Then
-//!   [`Scene::normals`], [`Scene::barycentrics`] and [`Scene::shade`] (Lambert + ambient,
-//!   [`Material`]: flat colour, vertex colours, image texture or symmetry-breaking patches).
+//!   [`Scene::normals`], [`Scene::barycentrics`] and [`Scene::shade`] (ambient + Lambert + a
+//!   Blinn–Phong highlight under a coloured light, [`Lighting`]; [`Material`]: flat colour,
+//!   vertex colours, image texture at the mesh's coordinates or projected, or
+//!   symmetry-breaking patches).
 //! - [`unproject`] depth back to points, [`depth_discrepancy`] (the render-and-compare score),
 //!   [`visible_surface_discrepancy`] (BOP's VSD of two poses), [`sample_surface`]
 //!   (area-weighted points and normals).
 //! - [`DepthSensor`]: what a real depth camera reads of a clean rendering (axial and lateral
 //!   noise, quantisation, shadows, dropped pixels, misregistration), with presets for
-//!   structured light and active stereo ([`SensorPreset`]); [`MaskErrors`]: a detector's
-//!   imprecise masks.
+//!   structured light and active stereo ([`SensorPreset`]); [`ImageChain`]: what a colour
+//!   camera makes of a shaded image (blur, gains, noise, tone curve, JPEG); [`MaskErrors`]: a
+//!   detector's imprecise masks.
 //!
 //! ```
 //! use depth_render::{Instance, Lighting, Material, PinholeCamera, Primitive, Scene, Window};

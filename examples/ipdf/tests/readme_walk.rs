@@ -87,6 +87,10 @@ fn the_readme_commands_run_in_order() {
         &root.join("examples/ipdf/tests/data/lmo_real"),
         &dir.path().join("lmo"),
     );
+    copy_dir(
+        &root.join("examples/pseudo-label/tests/data/ycbv_real"),
+        &dir.path().join("ycbv"),
+    );
     for command in &commands {
         let small = miniature(command);
         let out = Command::new("bash")

@@ -3,8 +3,10 @@
 //! and position), seen by a camera at a random elevation (15–80°) and distance (0.5–1.0 m),
 //! optionally with distractors that occlude it, a depth sensor's errors and a detector's mask errors. Faithful
 //! geometry, not photorealism. Two variants, as in the paper: `uniform` (one flat colour per
-//! object) and `texture` (model-space colour patches that break the visual symmetry but not
-//! the geometric one).
+//! object) and `texture` (a mesh file's own texture or vertex colours, else model-space colour
+//! patches that break the visual symmetry but not the geometric one). [`Randomization`] draws
+//! each frame's look at random (lights, procedural table and background textures, textured
+//! distractors, a colour camera's image chain) for models that must read real images.
 //!
 //! Frames are rendered in parallel; frame `i` of scene `s` draws from ChaCha8 stream
 //! `s · 2³² + i` of the seed, so a dataset is the same at any thread count. A scene is complete
