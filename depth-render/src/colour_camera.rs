@@ -4,8 +4,8 @@
 //! (`x^gamma`), 8-bit quantisation and a JPEG round trip. The colour counterpart of
 //! [`crate::DepthSensor`]; randomised per frame, it is part of the domain randomisation that lets
 //! a network trained on renders read real camera images.
+use image::RgbImage;
 use image::codecs::jpeg::JpegEncoder;
-use image::{ImageBuffer, Rgb, RgbImage};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -114,8 +114,7 @@ fn jpeg_round_trip(image: &RgbImage, quality: u8) -> Result<RgbImage, RenderErro
         .map_err(|e| invalid(&format!("JPEG encoding: {e}")))?;
     let decoded = image::load_from_memory_with_format(&bytes, image::ImageFormat::Jpeg)
         .map_err(|e| invalid(&format!("JPEG decoding: {e}")))?;
-    let decoded: ImageBuffer<Rgb<u8>, Vec<u8>> = decoded.into_rgb8();
-    Ok(decoded)
+    Ok(decoded.into_rgb8())
 }
 
 fn invalid(reason: &str) -> RenderError {

@@ -100,9 +100,15 @@ pub fn augment<R: Rng + ?Sized>(images: &Tensor, options: &Augmentation, rng: &m
         .reshape([batch as i64, 3, 1, 1])
         .to_device(device);
     let mut out = images.to_kind(Kind::Float);
-    for (i, sigma) in blurs {
-        let blurred = gaussian_blur(&out.narrow(0, i, 1), sigma);
-        out = out.slice_scatter(&blurred, 0, i, i + 1, 1);
+    if !blurs.is_empty() {
+        // Each blurred image on its own (their σ differ), put back into the batch at once.
+        let blurred: Vec<Tensor> = blurs
+            .iter()
+            .map(|&(i, sigma)| gaussian_blur(&out.narrow(0, i, 1), sigma))
+            .collect();
+        let rows: Vec<i64> = blurs.iter().map(|&(i, _)| i).collect();
+        let rows = Tensor::from_slice(&rows).to_device(device);
+        out = out.index_copy(0, &rows, &Tensor::cat(&blurred, 0));
     }
     (out * keep * gains).clamp(0.0, 1.0)
 }
