@@ -1,64 +1,46 @@
 #!/usr/bin/env bash
-# The real YCB-Video fixture as a benchmark: for each of its ten objects, the models the
-# pipeline trains today (quick preset: renders of the fixture's scan with a Kinect's depth,
-# pseudo labels, a rotation and a translation model), scored on the fixture's real frames per
-# instance (`ipdf eval`: rotation error, Acc@15°/30°, LLH, translation error, ADD(-S)).
+# The real YCB-Video fixture as a benchmark: for each of its ten objects, the one command a user
+# runs for a mesh of their own (`ipdf pipeline --mesh`: randomised renders of the fixture's scan
+# with a Kinect's depth, pseudo labels, a rotation and a translation model; nothing real in
+# training), scored on the fixture's real frames per instance (rotation error, Acc@15°/30°, LLH,
+# translation error, ADD(-S)).
 #
 #   scripts/real-frame-benchmark.sh [OUT] [OBJ_ID ...]
 #
 # OUT (default runs/real-frames) ends with `real_frames.md` (one table, every instance) and
-# `real_frames.json`; each object's run stays in OUT/obj_N, and an object whose `eval.json` is
-# there is not run again (a rerun resumes). FRAMES (800 training renders),
-# VAL_FRAMES (50), EPOCHS (32; translation EPOCHS/2), STEPS (50 per epoch) and LEVEL (4, the
-# scoring grid) scale it; SYNTH_ARGS are added to both `ipdf synth` calls (e.g. "--variant
-# texture --randomize": the scans' own textures, randomised looks) and TRAIN_ARGS to both
-# `ipdf train` calls; IPDF names the binary (target/release/ipdf).
+# `real_frames.json`; each object's run stays in OUT/obj_N, and a rerun resumes each where it
+# stopped. PRESET (quick) chooses the preset; FRAMES, VAL_FRAMES, EPOCHS and STEPS override its
+# training frames, validation frames, epochs (translation: EPOCHS too) and steps per epoch;
+# IPDF names the binary (target/release/ipdf).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${1:-runs/real-frames}
 shift || true
 FIXTURE=examples/pseudo-label/tests/data/ycbv_real
 IPDF=${IPDF:-target/release/ipdf}
-FRAMES=${FRAMES:-800}
-EPOCHS=${EPOCHS:-32}
-STEPS=${STEPS:-50}
-VAL_FRAMES=${VAL_FRAMES:-50}
-LEVEL=${LEVEL:-4}
-read -r -a SYNTH_EXTRA <<< "${SYNTH_ARGS:-}"
-read -r -a TRAIN_EXTRA <<< "${TRAIN_ARGS:-}"
+OVERRIDES=(--preset "${PRESET:-quick}")
+[ -n "${FRAMES:-}" ] && OVERRIDES+=(--frames "$FRAMES")
+[ -n "${VAL_FRAMES:-}" ] && OVERRIDES+=(--val-frames "$VAL_FRAMES")
+[ -n "${EPOCHS:-}" ] && OVERRIDES+=(--epochs "$EPOCHS")
+[ -n "${STEPS:-}" ] && OVERRIDES+=(--steps-per-epoch "$STEPS")
 OBJECTS=("$@")
 if [ ${#OBJECTS[@]} -eq 0 ]; then
     OBJECTS=(1 2 3 5 7 8 9 10 14 21)
 fi
 mkdir -p "$OUT"
 # The frames' camera: YCB-Video's cam_K, 640 × 480, 0.1 mm depth units.
-python3 - "$FIXTURE" "$OUT/camera.json" <<'EOF'
+python3 - "$FIXTURE" "$OUT/camera.json" <<'EOF2'
 import json, sys
 k = json.load(open(f"{sys.argv[1]}/test/000000/scene_camera.json"))["1"]["cam_K"]
 json.dump({"fx": k[0], "fy": k[4], "cx": k[2], "cy": k[5], "width": 640, "height": 480,
            "depth_scale": 0.1}, open(sys.argv[2], "w"), indent=2)
-EOF
-NETWORK=(--encoder small-cnn --input-size 48 --head 64,64 --steps-per-epoch "$STEPS" --batch-size 16
-    "${TRAIN_EXTRA[@]}")
+EOF2
 for id in "${OBJECTS[@]}"; do
     run="$OUT/obj_$id"
-    if [ -f "$run/eval.json" ]; then
-        continue
-    fi
     mesh=$(printf "%s/models/obj_%06d.ply" "$FIXTURE" "$id")
-    scene=(--mesh "$mesh" --camera "$OUT/camera.json" --distance 0.45 1.2 --off-centre 1
-        --roll 30 --occluders 2 --distractors 2 --sensor kinect --json "${SYNTH_EXTRA[@]}")
-    "$IPDF" synth --out "$run/data" --frames "$FRAMES" --frames-per-scene "$FRAMES" "${scene[@]}" >/dev/null
-    "$IPDF" synth --out "$run/data" --split val --frames "$VAL_FRAMES" --frames-per-scene "$VAL_FRAMES" --seed 1 "${scene[@]}" >/dev/null
-    "$IPDF" label --dataset "$run/data" --split train --sensor kinect --json >/dev/null
-    "$IPDF" train --dataset "$run/data" --labels pseudo --target rotation --out "$run/model" \
-        "${NETWORK[@]}" --epochs "$EPOCHS" --learning-rate 4e-3 --query-level 1 --json >/dev/null
-    "$IPDF" train --dataset "$run/data" --labels pseudo --target translation \
-        --out "$run/model/translation" "${NETWORK[@]}" --epochs $((EPOCHS / 2)) \
-        --learning-rate 2e-3 --translation-queries 512 --json >/dev/null
-    "$IPDF" eval --checkpoint "$run/model" --dataset "$FIXTURE" --split test --obj-id "$id" \
-        --level "$LEVEL" --out "$run/eval.json" --json >/dev/null
-    echo "obj $id: $(python3 -c "import json,sys; a=json.load(open(sys.argv[1]))['accuracy']; print(f\"Acc@15 {a['acc_15']:.2f}, median rotation error {a['median_rotation_error_deg']:.1f}°, median translation error {a['median_translation_error_mm']:.1f} mm\")" "$run/eval.json")"
+    "$IPDF" pipeline --mesh "$mesh" --camera "$OUT/camera.json" --out "$run" "${OVERRIDES[@]}" \
+        --real "$FIXTURE" --obj-id "$id" --json >/dev/null
+    echo "obj $id: $(python3 -c "import json,sys; r=json.load(open(sys.argv[1])); a=r['real']['accuracy']; print(f\"Acc@15 {a['acc_15']:.2f}, median rotation error {a['median_rotation_error_deg']:.1f}°, median translation error {a['median_translation_error_mm']:.1f} mm, {sum(r['timing_s'].values()) / 60:.1f} min\")" "$run/report.json")"
 done
 # One table of every instance, the object id beside it.
 python3 - "$OUT" "${OBJECTS[@]}" <<'EOF'
@@ -66,7 +48,7 @@ import json, math, sys
 out, ids = sys.argv[1], sys.argv[2:]
 rows = []
 for i in ids:
-    result = json.load(open(f"{out}/obj_{i}/eval.json"))
+    result = json.load(open(f"{out}/obj_{i}/report.json"))["real"]
     for r in result["instances"]:
         rows.append(dict(r, obj_id=int(i), add_metric=result["accuracy"]["add_metric"],
                          diameter_mm=result["pose"]["diameter_mm"]))
@@ -95,21 +77,22 @@ lines.append(f"{n} instances: Acc@15° {summary['acc_15']:.0%}, Acc@30° {summar
              f"{summary['median_rotation_error_deg']:.1f}°, truth denser than uniform for {summary['above_uniform']:.0%}, "
              f"median translation error {summary['median_translation_error_mm']:.1f} mm, ADD(-S) under 10% of the diameter "
              f"{summary['add_accuracy']:.0%}.")
-# Per object: the rotation model's LLH on its validation renders (the last epoch of its
-# train_log.csv) beside its real instances' scores.
+# Per object: the models' scores on their validation renders beside their real instances'
+# scores, and the run's minutes (of the invocation that finished it).
 objects = []
 for i in ids:
-    log = open(f"{out}/obj_{i}/model/train_log.csv").read().split()
-    header, last = log[0].split(","), log[-1].split(",")
-    accuracy = json.load(open(f"{out}/obj_{i}/eval.json"))["accuracy"]
-    objects.append(dict(obj_id=int(i), renders_validation_llh=float(last[header.index("validation_llh")]),
+    report = json.load(open(f"{out}/obj_{i}/report.json"))
+    accuracy = report["real"]["accuracy"]
+    objects.append(dict(obj_id=int(i), renders_validation_llh=report["renders"]["llh"],
+                        renders_maad_deg=report["renders"]["maad_deg"],
+                        minutes=sum(report["timing_s"].values()) / 60,
                         **{k: accuracy[k] for k in ("instances", "acc_15", "median_rotation_error_deg",
                                                     "median_translation_error_mm")}))
-lines += ["", "| obj | LLH on its validation renders | real instances | Acc@15° | median rotation error (°) | median translation error (mm) |",
-          "|---|---|---|---|---|---|"]
+lines += ["", "| obj | validation renders: LLH | MAAD (°) | real instances | Acc@15° | median rotation error (°) | median translation error (mm) | minutes |",
+          "|---|---|---|---|---|---|---|---|"]
 for o in objects:
-    lines.append(f"| {o['obj_id']} | {o['renders_validation_llh']:.2f} | {o['instances']} | {o['acc_15']:.0%} | "
-                 f"{o['median_rotation_error_deg']:.1f} | {o['median_translation_error_mm']:.1f} |")
+    lines.append(f"| {o['obj_id']} | {o['renders_validation_llh']:.2f} | {o['renders_maad_deg']:.1f} | {o['instances']} | {o['acc_15']:.0%} | "
+                 f"{o['median_rotation_error_deg']:.1f} | {o['median_translation_error_mm']:.1f} | {o['minutes']:.1f} |")
 open(f"{out}/real_frames.md", "w").write("\n".join(lines) + "\n")
 json.dump({"instances": rows, "summary": summary, "objects": objects}, open(f"{out}/real_frames.json", "w"), indent=2)
 print("\n".join(lines))

@@ -124,6 +124,8 @@ fn the_readme_commands_run_in_order() {
         "lmo_eval.json",
         "lmo_eval.md",
         "lmo_pred.npy",
+        "mustard/report.md",
+        "mustard/eval_real.md",
     ] {
         assert!(dir.path().join(file).is_file(), "{file} was not written");
     }

@@ -1,6 +1,6 @@
 //! `scripts/real-frame-benchmark.sh`, the real YCB-Video fixture as a benchmark, run at a
 //! miniature scale (a few renders, two brief epochs, one object) with this build's `ipdf`: it
-//! runs from synthesis to the merged table, its table has a row per instance of the object in
+//! runs `ipdf pipeline --mesh` from synthesis to the merged table, its table has a row per instance of the object in
 //! the fixture's ground truth, and its summary is what those rows say. The scores themselves
 //! are the full-scale run's (docs/results.md); a model this brief is not expected to be good.
 mod common;
@@ -67,7 +67,6 @@ fn the_benchmark_runs_and_its_table_holds_every_instance_of_the_object() {
             ("VAL_FRAMES", "4"),
             ("EPOCHS", "2"),
             ("STEPS", "2"),
-            ("LEVEL", "2"),
         ])
         .output()
         .unwrap();
@@ -88,8 +87,9 @@ fn the_benchmark_runs_and_its_table_holds_every_instance_of_the_object() {
         .map(|[scene, image, instance]| (scene, image, instance))
         .collect();
     assert_eq!(found, expected);
-    // Each row is the object's own `ipdf eval` row.
-    let eval = read_json(&out.join(format!("obj_{OBJECT}/eval.json")));
+    // Each row is the object's own row of its run's real-frame scores.
+    let report = read_json(&out.join(format!("obj_{OBJECT}/report.json")));
+    let eval = &report["real"];
     for (row, own) in rows.iter().zip(eval["instances"].as_array().unwrap()) {
         assert_eq!(row["obj_id"].as_u64(), Some(OBJECT));
         for key in [

@@ -32,6 +32,15 @@ pub fn check_extension(
     Ok(())
 }
 
+/// The object of a `--mesh` file in `scale` metres per unit, its repairs warned about, one of
+/// an implausible size (a `--mesh-scale` mistake) refused.
+pub fn load_mesh(path: &std::path::Path, scale: f64) -> anyhow::Result<synth_data::SynthObject> {
+    let (object, repairs) = synth_data::SynthObject::from_mesh_file(path, scale)?;
+    warn_repairs(path, &repairs);
+    depth_render::check_mesh_size(&object.mesh, path, scale, "--mesh-scale")?;
+    Ok(object)
+}
+
 /// One warning line on standard error for a mesh that loading repaired.
 pub fn warn_repairs(path: &std::path::Path, repairs: &depth_render::MeshRepairs) {
     if !repairs.is_empty() {

@@ -1,12 +1,14 @@
-//! `ipdf pipeline`: the whole method on synthetic data (see `ipdf::pipeline`); this module maps
-//! the flags onto a [`Plan`].
+//! `ipdf pipeline`: the whole method on synthetic data, or with `--mesh` on one object of the
+//! user's (see `ipdf::pipeline`); this module maps the flags onto a [`Plan`].
 use std::path::PathBuf;
 
-use anyhow::Result;
+use anyhow::{Context, Result, bail};
+use bop_dataset::{camera_from_json, read_json};
 use depth_render::SensorPreset;
-use ipdf::pipeline::{Plan, Preset, run_pipeline};
+use ipdf::pipeline::{MeshRequest, Plan, Preset, RealSplit, run_mesh_pipeline, run_pipeline};
 
 use super::choice::choice;
+use super::load_mesh;
 
 /// Arguments of `ipdf pipeline`.
 #[derive(Debug, clap::Args)]
@@ -47,12 +49,72 @@ pub struct PipelineArgs {
     /// Override the preset's steps per epoch.
     #[arg(long)]
     pub steps_per_epoch: Option<u64>,
+    /// One object of your own instead of the built-in three (.ply/.obj, its texture image or
+    /// vertex colours shown): randomised renders of it, pseudo labels, a rotation and a
+    /// translation model, scored on the renders and on `--real` (needs `--camera`).
+    #[arg(long, requires = "camera", conflicts_with = "texture_frames")]
+    pub mesh: Option<PathBuf>,
+    /// Metres per `--mesh` unit (BOP meshes are in millimetres).
+    #[arg(long, default_value_t = 0.001, requires = "mesh")]
+    pub mesh_scale: f64,
+    /// The camera of `--mesh`'s renders: JSON with `cam_K` or `fx fy cx cy`, `width`, `height`,
+    /// `depth_scale` (your camera's; a BOP `camera.json` will do).
+    #[arg(long, requires = "mesh")]
+    pub camera: Option<PathBuf>,
+    /// Nearest and farthest camera distance of `--mesh`'s renders (metres; default the range
+    /// of a tabletop RGB-D camera, which YCB-Video's, LINEMOD's and T-LESS's test frames lie in).
+    #[arg(long, num_args = 2, value_names = ["NEAR", "FAR"], default_values_t = [0.45, 1.2],
+          requires = "mesh")]
+    pub distance: Vec<f64>,
+    /// A real BOP dataset to score `--mesh`'s models on (its `models/` gives the object's
+    /// symmetries and ADD(-S) points; nothing of it is used in training).
+    #[arg(long, requires_all = ["mesh", "obj_id"])]
+    pub real: Option<PathBuf>,
+    /// The split of `--real` scored.
+    #[arg(long, default_value = "test", requires = "real")]
+    pub real_split: String,
+    /// The object's id in `--real`.
+    #[arg(long, requires = "real")]
+    pub obj_id: Option<u32>,
 }
 
 /// Runs `ipdf pipeline`; returns where the report is and the time per stage.
 pub fn run(args: &PipelineArgs, seed: u64) -> Result<serde_json::Value> {
-    let preset = args.preset.plan();
-    let plan = Plan {
+    let Some(mesh) = &args.mesh else {
+        let plan = plan(args, args.preset.plan());
+        return Ok(serde_json::to_value(run_pipeline(&args.out, &plan, seed)?)?);
+    };
+    let (near, far) = (args.distance[0], args.distance[1]);
+    if !(near.is_finite() && near > 0.0 && far >= near && far.is_finite()) {
+        bail!("--distance must be two distances with 0 < NEAR ≤ FAR, got {near} {far}");
+    }
+    let camera_file = args.camera.clone().context("--mesh needs --camera")?;
+    let real = match (&args.real, args.obj_id) {
+        (Some(dataset), Some(obj_id)) => Some(RealSplit {
+            dataset: dataset.clone(),
+            split: args.real_split.clone(),
+            obj_id,
+        }),
+        _ => None,
+    };
+    let request = MeshRequest {
+        object: load_mesh(mesh, args.mesh_scale)?,
+        mesh: mesh.clone(),
+        mesh_scale: args.mesh_scale,
+        camera: camera_from_json(&read_json(&camera_file)?, &camera_file, "", None)?,
+        camera_file,
+        distance: (near, far),
+        real,
+    };
+    let plan = plan(args, args.preset.mesh_plan());
+    Ok(serde_json::to_value(run_mesh_pipeline(
+        &args.out, &plan, &request, seed,
+    )?)?)
+}
+
+/// `preset` with the flags' overrides.
+fn plan(args: &PipelineArgs, preset: Plan) -> Plan {
+    Plan {
         frames: args.frames.unwrap_or(preset.frames),
         val_frames: args.val_frames.unwrap_or(preset.val_frames),
         texture_frames: args.texture_frames.unwrap_or(preset.texture_frames),
@@ -68,6 +130,5 @@ pub fn run(args: &PipelineArgs, seed: u64) -> Result<serde_json::Value> {
             .unwrap_or(preset.translation_epochs),
         steps_per_epoch: args.steps_per_epoch.unwrap_or(preset.steps_per_epoch),
         ..preset
-    };
-    Ok(serde_json::to_value(run_pipeline(&args.out, &plan, seed)?)?)
+    }
 }

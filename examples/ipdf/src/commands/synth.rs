@@ -1,12 +1,12 @@
 //! `ipdf synth`: a synthetic RGB-D dataset in BOP format (see `ipdf::synth`).
 use super::choice::choice;
-use super::warn_repairs;
+use super::load_mesh;
 use std::path::PathBuf;
 
 use anyhow::{Result, bail};
 use bop_dataset::BopDataset;
 use bop_dataset::{camera_from_json, read_json};
-use depth_render::{MaskErrors, SensorPreset, check_mesh_size};
+use depth_render::{MaskErrors, SensorPreset};
 use ipdf::progress::bar;
 use serde_json::json;
 use synth_data::{
@@ -118,12 +118,7 @@ pub fn run(args: &SynthArgs, seed: u64) -> Result<serde_json::Value> {
     } else {
         args.mesh
             .iter()
-            .map(|path| {
-                let (object, repairs) = SynthObject::from_mesh_file(path, args.mesh_scale)?;
-                warn_repairs(path, &repairs);
-                check_mesh_size(&object.mesh, path, args.mesh_scale, "--mesh-scale")?;
-                Ok(object)
-            })
+            .map(|path| load_mesh(path, args.mesh_scale))
             .collect::<Result<Vec<_>>>()?
     };
     let camera = match &args.camera {

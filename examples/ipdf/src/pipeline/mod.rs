@@ -7,6 +7,7 @@
 //! settings are recorded in `pipeline_config.json` when it starts, and a rerun into the same
 //! folder with other settings is refused.
 mod config;
+mod mesh;
 mod report;
 mod workers;
 
@@ -27,6 +28,7 @@ use serde::{Deserialize, Serialize};
 use synth_data::{ObjectKind, SynthObject, SynthOptions, Variant, synthesize};
 
 pub use config::{CONFIG_FILE, PipelineConfig, Plan, Preset};
+pub use mesh::{MeshConfig, MeshReport, MeshRequest, RealSplit, run_mesh_pipeline};
 pub use report::{FigureEntry, LabelAccuracy, ModelScores, Report, ScoreTable};
 pub use workers::on_threads;
 
@@ -188,24 +190,8 @@ fn label_datasets(
     for variant in Variant::ALL {
         let path = out.join(format!("labels_{}.json", variant.name()));
         if !path.exists() {
-            let dataset = BopDataset::open(&data_dir(out, variant), "models")?;
-            let dataset_options = DatasetOptions {
-                split: "train".into(),
-                mesh_scale: 1e-3,
-                obj_id: None,
-                shard: Shard::ALL,
-                relabel: false,
-            };
-            let defaults = LabelOptions::default();
-            let options = LabelOptions {
-                seed,
-                sensor: plan.sensor.unwrap_or(defaults.sensor),
-                ..defaults
-            };
-            let progress = bar(dataset.image_count("train")? as u64, "images");
-            label_dataset(&dataset, &dataset_options, &options, &progress)?;
-            progress.finish_and_clear();
-            score_labels(out, variant)?.write(&path)?;
+            label_split(&data_dir(out, variant), plan, seed)?;
+            score_labels(&data_dir(out, variant), variant.name())?.write(&path)?;
         }
         let report: LabelReport = read_json_as(&path)?;
         for (object, scores) in report.objects {
@@ -221,17 +207,35 @@ fn label_datasets(
     Ok(accuracy)
 }
 
-/// The pseudo labels of `variant`'s training split scored against its ground truth (the per-label
-/// errors included, which `labels_{variant}.json` does not keep).
-fn score_labels(out: &Path, variant: Variant) -> Result<LabelReport, Error> {
-    let dataset = BopDataset::open(&data_dir(out, variant), "models")?;
+/// Pseudo-labels the training split of the dataset in `data` (its scenes not labelled yet),
+/// with scores in the plan's sensor's expected errors (the Kinect's for clean depth).
+fn label_split(data: &Path, plan: &Plan, seed: u64) -> Result<(), Error> {
+    let dataset = BopDataset::open(data, "models")?;
+    let dataset_options = DatasetOptions {
+        split: "train".into(),
+        mesh_scale: 1e-3,
+        obj_id: None,
+        shard: Shard::ALL,
+        relabel: false,
+    };
+    let defaults = LabelOptions::default();
+    let options = LabelOptions {
+        seed,
+        sensor: plan.sensor.unwrap_or(defaults.sensor),
+        ..defaults
+    };
+    let progress = bar(dataset.image_count("train")? as u64, "images");
+    label_dataset(&dataset, &dataset_options, &options, &progress)?;
+    progress.finish_and_clear();
+    Ok(())
+}
+
+/// The pseudo labels of the training split of the dataset in `data` scored against its ground
+/// truth (the per-label errors included, which `labels_{variant}.json` does not keep).
+fn score_labels(data: &Path, variant: &str) -> Result<LabelReport, Error> {
+    let dataset = BopDataset::open(data, "models")?;
     let names = dataset.read_info()?.unwrap_or_default().names;
-    Ok(pseudo_label::report(
-        &dataset,
-        "train",
-        &names,
-        variant.name(),
-    )?)
+    Ok(pseudo_label::report(&dataset, "train", &names, variant)?)
 }
 
 /// Stage 3, the models: per object, Single, Analytical and Pseudo labels (with and without
@@ -290,43 +294,60 @@ fn train_models(out: &Path, plan: &Plan, runs: &[ModelRun], seed: u64) -> Result
             if run.occlusion { " with occlusion" } else { "" }
         );
         let request = TrainRequest {
-            dataset: data.clone(),
-            models_dir: "models".into(),
-            split: "train".into(),
-            val_split: "val".into(),
-            obj_id: None,
             object_name: Some(run.object.name().into()),
             labels: run.labels,
-            target,
             model: ModelConfig {
                 encoder: run.encoder,
-                input_size: plan.input_size as i64,
-                head_sizes: plan.head.clone(),
-                seed,
-                ..ModelConfig::default()
+                ..train_request(plan, &data, target, seed).model
             },
-            epochs: plan.epochs_of(target),
-            steps_per_epoch: plan.steps_per_epoch,
-            batch_size: plan.batch_size,
-            learning_rate: plan.learning_rate_of(target),
             occlusion: run.occlusion,
-            blur: 0.0,
-            crop: CropSource::Mask,
-            query_level: plan.query_level,
-            translation_queries: plan.translation_queries,
-            continuous_steps: 36,
-            pretrained: None,
-            // A translation model's validation refines an octree per crop (about 0.6 s per
-            // epoch for 50 crops of the quick preset): 16 crops give the curve.
-            validation_images: (target == Target::Translation).then_some(TRANSLATION_VALIDATION),
             out: run.dir_of(target),
-            seed,
+            ..train_request(plan, &data, target, seed)
         };
         let progress = bar(plan.total_steps(target), "steps");
         train_model(&request, &progress)?;
         progress.finish_and_clear();
         Ok(())
     })
+}
+
+/// How the plan trains a model of `target` on the `train` split of the dataset in `data`,
+/// validated on its `val` split: the plan's encoder, Pseudo labels, the plan's first occlusion
+/// setting and its blur, object 1, into `data/model`: callers set what differs.
+fn train_request(plan: &Plan, data: &Path, target: Target, seed: u64) -> TrainRequest {
+    TrainRequest {
+        dataset: data.to_path_buf(),
+        models_dir: "models".into(),
+        split: "train".into(),
+        val_split: "val".into(),
+        obj_id: None,
+        object_name: None,
+        labels: LabelSource::Pseudo,
+        target,
+        model: ModelConfig {
+            encoder: plan.encoder,
+            input_size: plan.input_size as i64,
+            head_sizes: plan.head.clone(),
+            seed,
+            ..ModelConfig::default()
+        },
+        epochs: plan.epochs_of(target),
+        steps_per_epoch: plan.steps_per_epoch,
+        batch_size: plan.batch_size,
+        learning_rate: plan.learning_rate_of(target),
+        occlusion: plan.occlusion.first().copied().unwrap_or(false),
+        blur: plan.blur,
+        crop: CropSource::Mask,
+        query_level: plan.query_level,
+        translation_queries: plan.translation_queries,
+        continuous_steps: 36,
+        pretrained: None,
+        // A translation model's validation refines an octree per crop (about 0.6 s per
+        // epoch for 50 crops of the quick preset): 16 crops give the curve.
+        validation_images: (target == Target::Translation).then_some(TRANSLATION_VALIDATION),
+        out: data.join("model"),
+        seed,
+    }
 }
 
 /// Stage 4, scores on the validation split (`eval_levelN.json` per run, kept), the runs not
@@ -364,21 +385,19 @@ fn draw_figures(out: &Path, plan: &Plan, runs: &[ModelRun]) -> Result<Vec<Figure
             .unwrap_or(&run.dir)
             .to_string_lossy()
             .replace('/', "_");
-        let distribution = figures.join(format!("{stem}.png"));
-        if !distribution.exists() {
-            let figure = first_validation_figure(run, &data, plan.eval_level.min(3))?;
-            write_png(&distribution, &figure)?;
-        }
-        let curves = figures.join(format!("{stem}_curves.png"));
-        if !curves.exists() {
+        write_figure(&figures.join(format!("{stem}.png")), || {
+            first_validation_figure(run, &data, plan.eval_level.min(3))
+        })?;
+        write_figure(&figures.join(format!("{stem}_curves.png")), || {
             let log = run.dir.join(TRAIN_LOG);
             let text = std::fs::read_to_string(&log)
                 .map_err(|e| bop_dataset::FileError::new(&log, "file", e.to_string()))?;
-            write_png(&curves, &plot_training_curves(&text, &log)?)?;
-        }
-        let translation = figures.join(format!("{stem}_translation.png"));
-        if run.pose && !translation.exists() {
-            write_png(&translation, &first_translation_figure(run, &data)?)?;
+            plot_training_curves(&text, &log)
+        })?;
+        if run.pose {
+            write_figure(&figures.join(format!("{stem}_translation.png")), || {
+                first_translation_figure(run, &data)
+            })?;
         }
         entries.push(FigureEntry {
             object: run.object.name().into(),
@@ -402,7 +421,7 @@ fn draw_label_errors(out: &Path, path: &Path) -> Result<(), Error> {
     }
     let reports = Variant::ALL
         .into_iter()
-        .map(|variant| score_labels(out, variant))
+        .map(|variant| score_labels(&data_dir(out, variant), variant.name()))
         .collect::<Result<Vec<_>, _>>()?;
     let panels: Vec<(&str, &LabelReport)> = Variant::ALL
         .iter()
@@ -421,45 +440,70 @@ fn first_validation_figure(
 ) -> Result<image::RgbImage, Error> {
     let info = RunInfo::read(&run.dir)?;
     let model = ImplicitPdf::load(&run.dir, default_device())?;
-    let dataset = BopDataset::new(data);
+    let title = format!(
+        "{}, trained on {} labels",
+        run.object.name(),
+        run.labels.name()
+    );
+    first_instance_figure(
+        &model,
+        &BopDataset::new(data),
+        "val",
+        info.obj_id,
+        level,
+        &title,
+    )?
+    .ok_or_else(|| {
+        Error::option(
+            "dataset",
+            format!("no validation image of {}", run.object.name()),
+        )
+    })
+}
+
+/// The distribution figure of `model` for the first instance of object `obj_id` in `split`
+/// with a visible mask, against its true poses under the symmetries of the dataset's
+/// `models_info.json`; `None` where there is none.
+fn first_instance_figure(
+    model: &ImplicitPdf,
+    dataset: &BopDataset,
+    split: &str,
+    obj_id: u32,
+    level: u8,
+    title: &str,
+) -> Result<Option<image::RgbImage>, Error> {
     let models = read_models_info(&dataset.models_info_path())?;
-    for scene_id in dataset.scene_ids("val")? {
-        let scene = dataset.scene("val", scene_id);
+    let group = models
+        .get(&obj_id)
+        .map(|m| m.symmetry.clone())
+        .unwrap_or_default();
+    for scene_id in dataset.scene_ids(split)? {
+        let scene = dataset.scene(split, scene_id);
         for (im_id, instances) in read_scene_gt(&scene.gt_path())? {
-            let Some((k, truth)) = instances
-                .iter()
-                .enumerate()
-                .find(|(_, t)| t.obj_id == info.obj_id)
-            else {
-                continue;
-            };
-            let crop = crop_files(
-                &scene.rgb_path(im_id),
-                &scene.mask_visib_path(im_id, k),
-                model.config().input_size as usize,
-            )?;
-            let group = models
-                .get(&info.obj_id)
-                .map(|m| m.symmetry.clone())
-                .unwrap_or_default();
-            let title = format!(
-                "{}, trained on {} labels",
-                run.object.name(),
-                run.labels.name()
-            );
-            return distribution_figure(
-                &model,
-                &crop.pixels,
-                &group.expand(&truth.pose.rotation),
-                level,
-                &title,
-            );
+            for (k, truth) in instances.iter().enumerate() {
+                let mask = scene.mask_visib_path(im_id, k);
+                if truth.obj_id != obj_id || !mask.exists() {
+                    continue;
+                }
+                let size = model.config().input_size as usize;
+                let crop = crop_files(&scene.rgb_path(im_id), &mask, size)?;
+                let truths = group.expand(&truth.pose.rotation);
+                return distribution_figure(model, &crop.pixels, &truths, level, title).map(Some);
+            }
         }
     }
-    Err(Error::option(
-        "dataset",
-        format!("no validation image of {}", run.object.name()),
-    ))
+    Ok(None)
+}
+
+/// Writes the figure `draw` makes to `path`, unless `path` exists.
+fn write_figure(
+    path: &Path,
+    draw: impl FnOnce() -> Result<image::RgbImage, Error>,
+) -> Result<(), Error> {
+    if !path.exists() {
+        write_png(path, &draw()?)?;
+    }
+    Ok(())
 }
 
 /// The translation distribution of `run`'s translation model for the first validation image of

@@ -1,0 +1,408 @@
+//! `ipdf pipeline --mesh`: one object of the user's, from its mesh and camera to a pose model,
+//! as one resumable run: randomised renders of the mesh (its own texture or vertex colours, off
+//! centre, rolled, among distractors and occluders, with a depth sensor's readings) → pseudo
+//! labels of the training renders (no pose read) → a Pseudo rotation model and its translation
+//! model → scores on the validation renders and, given one, on a real BOP split →
+//! `report.md` / `report.json` and figures. The settings are recorded in
+//! `pipeline_config.json`, and a rerun with other settings is refused.
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use bop_dataset::{BopDataset, read_json_as, write_atomically, write_json};
+use depth_render::SensorPreset;
+use ipdf_model::rotation::ImplicitPdf;
+use ipdf_model::{TRAIN_LOG, default_device};
+use pseudo_label::LabelReport;
+use serde::{Deserialize, Serialize};
+use synth_data::{Randomization, SynthObject, SynthOptions, Variant, ViewRange, synthesize};
+
+use super::config::{Plan, check_and_record};
+use super::report::LabelAccuracy;
+use super::{PipelineSummary, first_instance_figure, label_split, on_threads, score_labels};
+use super::{train_request, write_figure};
+use crate::Error;
+use crate::eval::instances::markdown;
+use crate::eval::{EvalRequest, EvalResult, evaluate_run};
+use crate::plots::plot_training_curves;
+use crate::progress::bar;
+use crate::training::{TRANSLATION_DIR, Target, is_trained, train_model};
+
+/// A real BOP split to score the models on.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RealSplit {
+    /// The dataset folder (its `models/` gives the object's symmetries and ADD(-S) points).
+    pub dataset: PathBuf,
+    /// The split (`test`, …).
+    pub split: String,
+    /// The object's id in that dataset.
+    pub obj_id: u32,
+}
+
+/// The user's object and where it is seen.
+#[derive(Debug, Clone)]
+pub struct MeshRequest {
+    /// The object, loaded from `mesh`.
+    pub object: SynthObject,
+    /// Its mesh file, as given.
+    pub mesh: PathBuf,
+    /// Metres per mesh unit.
+    pub mesh_scale: f64,
+    /// The camera file, as given.
+    pub camera_file: PathBuf,
+    /// The camera read from it.
+    pub camera: bop_dataset::BopCamera,
+    /// Nearest and farthest camera distance of the renders (metres).
+    pub distance: (f64, f64),
+    /// The real split to score on, if any.
+    pub real: Option<RealSplit>,
+}
+
+/// `pipeline_config.json` of a mesh run, and the `"config"` of its `report.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MeshConfig {
+    /// What the run does.
+    #[serde(flatten)]
+    pub plan: Plan,
+    /// The run's seed.
+    pub seed: u64,
+    /// The mesh file, as given.
+    pub mesh: PathBuf,
+    /// Metres per mesh unit.
+    pub mesh_scale: f64,
+    /// The camera file, as given.
+    pub camera: PathBuf,
+    /// Nearest and farthest camera distance of the renders (metres).
+    pub distance_m: [f64; 2],
+    /// The real split scored, if any.
+    pub real: Option<RealSplit>,
+    /// The dataset trained on.
+    pub training_data: String,
+}
+
+/// `report.json` of a mesh run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MeshReport {
+    /// The object's name (the mesh file's stem).
+    pub object: String,
+    /// The pseudo labels of the training renders against the renders' truth.
+    pub labels: LabelAccuracy,
+    /// The models' scores on the validation renders.
+    pub renders: EvalResult,
+    /// Their scores on the real split, per instance too, if one was given.
+    pub real: Option<EvalResult>,
+    /// Seconds per stage of the invocation that wrote the report.
+    pub timing_s: BTreeMap<String, f64>,
+    /// The run's settings.
+    pub config: MeshConfig,
+}
+
+/// The renders' folder in the run.
+const DATA: &str = "data";
+/// The models' folder (the rotation model; its translation model in `translation/`).
+const MODEL: &str = "model";
+
+/// Runs (or resumes) the pipeline of `plan` for the object of `request` into `out`.
+pub fn run_mesh_pipeline(
+    out: &Path,
+    plan: &Plan,
+    request: &MeshRequest,
+    seed: u64,
+) -> Result<PipelineSummary, Error> {
+    std::fs::create_dir_all(out)
+        .map_err(|e| bop_dataset::FileError::new(out, "folder", e.to_string()))?;
+    let config = MeshConfig {
+        plan: plan.clone(),
+        seed,
+        mesh: request.mesh.clone(),
+        mesh_scale: request.mesh_scale,
+        camera: request.camera_file.clone(),
+        distance_m: [request.distance.0, request.distance.1],
+        real: request.real.clone(),
+        training_data: "randomised renders".into(),
+    };
+    check_and_record(out, &config)?;
+    let (data, model) = (out.join(DATA), out.join(MODEL));
+    let mut timing = BTreeMap::new();
+    let mut stage = |name: &str, started: Instant| {
+        let seconds = started.elapsed().as_secs_f64();
+        timing.insert(name.to_string(), seconds);
+        eprintln!("pipeline: {name} done in {seconds:.0} s");
+    };
+    let started = Instant::now();
+    synthesize_renders(&data, plan, request, seed)?;
+    stage("synth", started);
+    let started = Instant::now();
+    let labels = label_renders(out, &data, plan, seed)?;
+    stage("label", started);
+    let started = Instant::now();
+    train_pose(&data, &model, plan, seed)?;
+    stage("train", started);
+    let started = Instant::now();
+    let (renders, real) = score(out, &model, plan, request.real.as_ref())?;
+    stage("eval", started);
+    let started = Instant::now();
+    let figures = out.join("figures");
+    draw_figures(&figures, &data, &model, plan, request.real.as_ref())?;
+    stage("figures", started);
+
+    let report = MeshReport {
+        object: request.object.name.clone(),
+        labels,
+        renders,
+        real,
+        timing_s: timing,
+        config,
+    };
+    let summary = PipelineSummary {
+        report: out.join("report.md"),
+        report_json: out.join("report.json"),
+        figures,
+        timing_s: report.timing_s.clone(),
+    };
+    write_json(&summary.report_json, &report)?;
+    let text = report.to_markdown();
+    write_atomically(&summary.report, |f| f.write_all(text.as_bytes()))?;
+    eprintln!("pipeline: report {}", summary.report.display());
+    Ok(summary)
+}
+
+/// Stage 1: the training and validation renders (complete scenes are skipped).
+fn synthesize_renders(
+    data: &Path,
+    plan: &Plan,
+    request: &MeshRequest,
+    seed: u64,
+) -> Result<(), Error> {
+    let objects = [request.object.clone()];
+    for (split, frames, split_seed) in [
+        ("train", plan.frames, seed),
+        ("val", plan.val_frames, seed + 1),
+    ] {
+        let options = SynthOptions {
+            frames,
+            frames_per_scene: frames,
+            variant: Variant::Texture,
+            camera: request.camera,
+            view: ViewRange {
+                distance: request.distance,
+                off_centre: 1.0,
+                roll_deg: 30.0,
+                ..ViewRange::default()
+            },
+            distractors: 2,
+            occluders: 2,
+            sensor: plan.sensor.map(SensorPreset::sensor),
+            mask_errors: None,
+            randomization: Randomization::ALL,
+            seed: split_seed,
+        };
+        let progress = bar(frames as u64, "frames");
+        synthesize(&BopDataset::new(data), split, &objects, &options, &progress)?;
+        progress.finish_and_clear();
+    }
+    Ok(())
+}
+
+/// Stage 2: pseudo labels of the training renders, scored against their truth
+/// (`labels.json`, kept: a rerun reads it back).
+fn label_renders(out: &Path, data: &Path, plan: &Plan, seed: u64) -> Result<LabelAccuracy, Error> {
+    let path = out.join("labels.json");
+    if !path.exists() {
+        label_split(data, plan, seed)?;
+        score_labels(data, "randomised")?.write(&path)?;
+    }
+    let report: LabelReport = read_json_as(&path)?;
+    report
+        .objects
+        .into_values()
+        .next()
+        .map(|scores| LabelAccuracy {
+            label_maad_deg: scores.label_maad_deg,
+            coverage: scores.coverage,
+        })
+        .ok_or_else(|| Error::option("labels", format!("{}: no object", path.display())))
+}
+
+/// Stage 3: the rotation model in `model` and its translation model, side by side.
+fn train_pose(data: &Path, model: &Path, plan: &Plan, seed: u64) -> Result<(), Error> {
+    let mut pending = Vec::new();
+    for (target, dir) in [
+        (Target::Rotation, model.to_path_buf()),
+        (Target::Translation, model.join(TRANSLATION_DIR)),
+    ] {
+        if !is_trained(&dir, plan.total_steps(target))? {
+            pending.push((target, dir));
+        }
+    }
+    on_threads(&pending, plan.concurrent_models, |(target, dir)| {
+        eprintln!("pipeline: training the {} model", target.name());
+        let request = crate::training::TrainRequest {
+            out: dir.clone(),
+            ..train_request(plan, data, *target, seed)
+        };
+        let progress = bar(plan.total_steps(*target), "steps");
+        train_model(&request, &progress)?;
+        progress.finish_and_clear();
+        Ok(())
+    })
+}
+
+/// Stage 4: scores on the validation renders (`eval_renders.json`) and on the real split
+/// (`eval_real.json`, each instance's in `eval_real.md`), both kept.
+fn score(
+    out: &Path,
+    model: &Path,
+    plan: &Plan,
+    real: Option<&RealSplit>,
+) -> Result<(EvalResult, Option<EvalResult>), Error> {
+    let renders = EvalRequest::new(model.to_path_buf(), "val", plan.eval_level);
+    let renders = cached(&out.join("eval_renders.json"), &renders)?;
+    let Some(real) = real else {
+        return Ok((renders, None));
+    };
+    let request = EvalRequest {
+        dataset: Some(real.dataset.clone()),
+        obj_id: Some(real.obj_id),
+        per_instance: true,
+        ..EvalRequest::new(model.to_path_buf(), &real.split, plan.eval_level)
+    };
+    let path = out.join("eval_real.json");
+    let result = cached(&path, &request)?;
+    if let Some(accuracy) = &result.accuracy {
+        let what = format!(
+            "{}, object {} of {}, split {}",
+            result.object,
+            real.obj_id,
+            real.dataset.display(),
+            real.split
+        );
+        let table = markdown(&what, &result.instances, accuracy);
+        write_atomically(&path.with_extension("md"), |f| {
+            f.write_all(table.as_bytes())
+        })?;
+    }
+    Ok((renders, Some(result)))
+}
+
+/// The scores of `request`, read from `path` where an earlier run wrote them.
+fn cached(path: &Path, request: &EvalRequest) -> Result<EvalResult, Error> {
+    if path.exists() {
+        return Ok(read_json_as(path)?);
+    }
+    let progress = bar(0, "images");
+    let result = evaluate_run(request, &progress)?;
+    progress.finish_and_clear();
+    if let Some(warning) = &result.warning {
+        eprintln!("warning: {warning}");
+    }
+    write_json(path, &result)?;
+    Ok(result)
+}
+
+/// Stage 5: both models' training curves and the rotation model's distribution on the first
+/// real instance (else the first validation render); existing figures are kept.
+fn draw_figures(
+    figures: &Path,
+    data: &Path,
+    model: &Path,
+    plan: &Plan,
+    real: Option<&RealSplit>,
+) -> Result<(), Error> {
+    for (name, dir) in [
+        ("rotation_curves", model.to_path_buf()),
+        ("translation_curves", model.join(TRANSLATION_DIR)),
+    ] {
+        write_figure(&figures.join(format!("{name}.png")), || {
+            let log = dir.join(TRAIN_LOG);
+            let text = std::fs::read_to_string(&log)
+                .map_err(|e| bop_dataset::FileError::new(&log, "file", e.to_string()))?;
+            plot_training_curves(&text, &log)
+        })?;
+    }
+    let (name, dataset, split, obj_id) = match real {
+        Some(real) => (
+            "real",
+            real.dataset.as_path(),
+            real.split.as_str(),
+            real.obj_id,
+        ),
+        None => ("renders", data, "val", 1),
+    };
+    let path = figures.join(format!("distribution_{name}.png"));
+    if path.exists() {
+        return Ok(());
+    }
+    let rotation = ImplicitPdf::load(model, default_device())?;
+    let title = format!("the first {name} instance");
+    let level = plan.eval_level.min(3);
+    let dataset = BopDataset::new(dataset);
+    if let Some(figure) = first_instance_figure(&rotation, &dataset, split, obj_id, level, &title)?
+    {
+        write_figure(&path, || Ok(figure))?;
+    }
+    Ok(())
+}
+
+impl MeshReport {
+    /// The report as Markdown: the settings, the labels' accuracy, the scores on renders and
+    /// on the real split (each instance's), the time per stage.
+    pub fn to_markdown(&self) -> String {
+        let c = &self.config;
+        let p = &c.plan;
+        let mut out = format!(
+            "# {}: a pose model from its mesh\n\n{} preset, seed {}: {} training and {} \
+             validation renders of `{}` (randomised looks, {}), {} on {}-pixel crops, {} \
+             epochs of {} steps of {} (translation {} epochs), occlusion{}.\n\n",
+            self.object,
+            p.preset.name(),
+            c.seed,
+            p.frames,
+            p.val_frames,
+            c.mesh.display(),
+            p.sensor
+                .map_or("clean depth".to_string(), |s| format!("{} depth", s.name())),
+            p.encoder.name(),
+            p.input_size,
+            p.epochs,
+            p.steps_per_epoch,
+            p.batch_size,
+            p.translation_epochs,
+            if p.blur > 0.0 {
+                format!(" and blur up to σ = {} px", p.blur)
+            } else {
+                String::new()
+            },
+        );
+        out += &format!(
+            "Pseudo labels of the training renders: {:.1}° from the truth on average, {:.0}% of \
+             the symmetric poses found.\n\n",
+            self.labels.label_maad_deg,
+            100.0 * self.labels.coverage
+        );
+        let r = &self.renders;
+        out += &format!(
+            "On {} validation renders (grid level {}): LLH {:.2}, MAAD {:.1}°, Recall MAAD \
+             {:.1}°",
+            r.images, r.level, r.llh, r.maad_deg, r.recall_maad_deg
+        );
+        if let Some(t) = &r.translation {
+            out += &format!(", translation error median {:.1} mm", t.median_error_mm);
+        }
+        out += ".\n\n";
+        if let Some(real) = &self.real
+            && let Some(accuracy) = &real.accuracy
+        {
+            out += &markdown("Real frames", &real.instances, accuracy);
+            out += "\n";
+        }
+        out += "\nSeconds per stage:";
+        for (stage, seconds) in &self.timing_s {
+            out += &format!(" {stage} {seconds:.0},");
+        }
+        out.pop();
+        out += ".\n";
+        out
+    }
+}

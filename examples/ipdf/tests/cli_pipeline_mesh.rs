@@ -1,0 +1,158 @@
+//! `ipdf pipeline --mesh` through the real binary: one scanned mesh of the real YCB-Video
+//! fixture, in miniature (a few dozen renders, a few training steps), scored on the fixture's
+//! real frames. The instances scored are counted from the fixture's own files; accuracy is not
+//! checked (docs/results.md measures it at full size).
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::{ipdf, ipdf_json, read_json, s};
+use serde_json::{Value, json};
+
+/// The fixture's folder, in the crate that owns it.
+fn fixture() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../pseudo-label/tests/data/ycbv_real")
+}
+
+/// The mustard bottle: the fixture's one object seen in two scenes.
+const OBJ_ID: u64 = 5;
+
+/// `(scene, image)` of every instance of `obj_id` at least 10% visible, from the fixture's
+/// `scene_gt.json` and `scene_gt_info.json`.
+fn instances_of(root: &Path, obj_id: u64) -> Vec<(u64, u64)> {
+    let mut found = Vec::new();
+    for scene in ["000000", "000001", "000002"] {
+        let folder = root.join("test").join(scene);
+        let gt = read_json(&folder.join("scene_gt.json"));
+        let info = read_json(&folder.join("scene_gt_info.json"));
+        for (image, entries) in gt.as_object().unwrap() {
+            for (k, entry) in entries.as_array().unwrap().iter().enumerate() {
+                let visible = info[image][k]["visib_fract"].as_f64().unwrap();
+                if entry["obj_id"] == obj_id && visible >= 0.1 {
+                    found.push((scene.parse().unwrap(), image.parse().unwrap()));
+                }
+            }
+        }
+    }
+    found.sort();
+    found
+}
+
+/// The fixture's camera (its `cam_K`, 640 × 480, 0.1 mm depth units) as a camera file.
+fn write_camera(path: &Path) {
+    let camera = read_json(&fixture().join("test/000000/scene_camera.json"));
+    let k = &camera["1"]["cam_K"];
+    let file = json!({"fx": k[0], "fy": k[4], "cx": k[2], "cy": k[5], "width": 640,
+                      "height": 480, "depth_scale": 0.1});
+    std::fs::write(path, file.to_string()).unwrap();
+}
+
+/// Asserts that `ipdf args` fails, its last line on standard error containing `expected` (the
+/// line before it, if any, is the mesh's repairs: this scan has two zero-area triangles).
+fn assert_refused(args: &[&str], expected: &str) {
+    let out = ipdf(args);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "ipdf {args:?} succeeded");
+    let last = stderr.trim_end().lines().last().unwrap_or_default();
+    assert!(last.contains(expected), "ipdf {args:?}: {stderr}");
+    assert!(stderr.trim_end().lines().count() <= 2, "{stderr}");
+}
+
+fn words<'a>(mesh: &'a str, camera: &'a str, out: &'a str, real: &'a str) -> Vec<&'a str> {
+    vec![
+        "pipeline",
+        "--mesh",
+        mesh,
+        "--camera",
+        camera,
+        "--out",
+        out,
+        "--frames",
+        "24",
+        "--val-frames",
+        "4",
+        "--epochs",
+        "1",
+        "--steps-per-epoch",
+        "3",
+        "--real",
+        real,
+        "--obj-id",
+        "5",
+    ]
+}
+
+#[test]
+fn a_mesh_run_is_scored_on_the_real_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let (camera, out) = (dir.path().join("camera.json"), dir.path().join("run"));
+    write_camera(&camera);
+    let root = fixture();
+    let mesh = root.join("models/obj_000005.ply");
+    let args = words(s(&mesh), s(&camera), s(&out), s(&root));
+    ipdf_json(&args);
+
+    let report = read_json(&out.join("report.json"));
+    assert_eq!(report["object"], "obj_000005");
+    assert_eq!(report["config"]["training_data"], "randomised renders");
+    assert_eq!(report["config"]["frames_per_object"], 24);
+    // Every real instance of the object is scored, and only those.
+    let real = &report["real"];
+    let scored: Vec<(u64, u64)> = real["instances"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r: &Value| {
+            (
+                r["scene_id"].as_u64().unwrap(),
+                r["im_id"].as_u64().unwrap(),
+            )
+        })
+        .collect();
+    let expected = instances_of(&root, OBJ_ID);
+    assert_eq!(expected.len(), 2);
+    assert_eq!(scored, expected, "{real}");
+    assert_eq!(real["obj_id"], OBJ_ID);
+    for row in real["instances"].as_array().unwrap() {
+        let error = row["rotation_error_deg"].as_f64().unwrap();
+        let mm = row["translation_error_mm"].as_f64().unwrap();
+        assert!(
+            (0.0..=180.0).contains(&error) && mm.is_finite() && mm >= 0.0,
+            "{row}"
+        );
+    }
+    // The validation renders are scored as a pose: rotation and translation.
+    let renders = &report["renders"];
+    let images = renders["images"].as_u64().unwrap();
+    assert!((1..=4).contains(&images), "{renders}");
+    assert!(renders["translation"]["median_error_mm"].as_f64().is_some());
+    // Pseudo labels only: the training split has labels, and the run read no real pose.
+    assert!(out.join("data/train/000000/scene_pseudo_gt.json").exists());
+    let markdown = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(markdown.contains("## Real frames"), "{markdown}");
+    for figure in ["distribution_real", "rotation_curves", "translation_curves"] {
+        let path = out.join("figures").join(format!("{figure}.png"));
+        assert!(image::image_dimensions(&path).is_ok(), "{}", path.display());
+    }
+
+    // A rerun with other renders is refused, naming the flag.
+    let mut other = args.clone();
+    other.extend(["--distance", "0.5", "1.0"]);
+    assert_refused(&other, "distance_m (--distance)");
+}
+
+#[test]
+fn a_mesh_run_refuses_what_it_cannot_use() {
+    let dir = tempfile::tempdir().unwrap();
+    let (camera, out) = (dir.path().join("camera.json"), dir.path().join("run"));
+    write_camera(&camera);
+    let root = fixture();
+    let mesh = root.join("models/obj_000005.ply");
+    let mut far_first = words(s(&mesh), s(&camera), s(&out), s(&root));
+    far_first.extend(["--distance", "1.2", "0.4"]);
+    assert_refused(&far_first, "--distance must be two distances");
+    std::fs::write(dir.path().join("bad.json"), r#"{"fx": 500}"#).unwrap();
+    let bad = dir.path().join("bad.json");
+    assert_refused(&words(s(&mesh), s(&bad), s(&out), s(&root)), "bad.json");
+    assert!(!out.exists());
+}
