@@ -144,7 +144,8 @@ pub fn run_mesh_pipeline(
     stage("eval", started);
     let started = Instant::now();
     let figures = out.join("figures");
-    draw_figures(&figures, &data, &model, plan, request.real.as_ref())?;
+    let object = &request.object.name;
+    draw_figures(&figures, &data, &model, plan, object, request.real.as_ref())?;
     stage("figures", started);
 
     let report = MeshReport {
@@ -308,6 +309,7 @@ fn draw_figures(
     data: &Path,
     model: &Path,
     plan: &Plan,
+    object: &str,
     real: Option<&RealSplit>,
 ) -> Result<(), Error> {
     for (name, dir) in [
@@ -335,7 +337,7 @@ fn draw_figures(
         return Ok(());
     }
     let rotation = ImplicitPdf::load(model, default_device())?;
-    let title = format!("the first {name} instance");
+    let title = format!("{object}: its Pseudo model on the first {name} instance");
     let level = plan.eval_level.min(3);
     let dataset = BopDataset::new(dataset);
     if let Some(figure) = first_instance_figure(&rotation, &dataset, split, obj_id, level, &title)?
