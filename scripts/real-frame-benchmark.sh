@@ -11,7 +11,8 @@
 # `real_frames.json`; each object's run stays in OUT/obj_N, and a rerun resumes each where it
 # stopped. PRESET (quick) chooses the preset; FRAMES, VAL_FRAMES, EPOCHS and STEPS override its
 # training frames, validation frames, epochs (translation: EPOCHS too) and steps per epoch;
-# IPDF names the binary (target/release/ipdf).
+# PIPELINE_ARGS are added to each run (e.g. "--randomize none": plain renders); IPDF names the
+# binary (target/release/ipdf).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${1:-runs/real-frames}
@@ -23,6 +24,8 @@ OVERRIDES=(--preset "${PRESET:-quick}")
 [ -n "${VAL_FRAMES:-}" ] && OVERRIDES+=(--val-frames "$VAL_FRAMES")
 [ -n "${EPOCHS:-}" ] && OVERRIDES+=(--epochs "$EPOCHS")
 [ -n "${STEPS:-}" ] && OVERRIDES+=(--steps-per-epoch "$STEPS")
+read -r -a EXTRA <<< "${PIPELINE_ARGS:-}"
+OVERRIDES+=("${EXTRA[@]}")
 OBJECTS=("$@")
 if [ ${#OBJECTS[@]} -eq 0 ]; then
     OBJECTS=(1 2 3 5 7 8 9 10 14 21)

@@ -96,6 +96,8 @@ fn a_mesh_run_is_scored_on_the_real_frames() {
     assert_eq!(report["object"], "obj_000005");
     assert_eq!(report["config"]["training_data"], "randomised renders");
     assert_eq!(report["config"]["frames_per_object"], 24);
+    let parts = ["lights", "backgrounds", "textures", "camera"];
+    assert_eq!(report["config"]["randomize"], json!(parts));
     // Every real instance of the object is scored, and only those.
     let real = &report["real"];
     let scored: Vec<(u64, u64)> = real["instances"]
@@ -151,6 +153,9 @@ fn a_mesh_run_refuses_what_it_cannot_use() {
     let mut far_first = words(s(&mesh), s(&camera), s(&out), s(&root));
     far_first.extend(["--distance", "1.2", "0.4"]);
     assert_refused(&far_first, "--distance must be two distances");
+    let mut fog = words(s(&mesh), s(&camera), s(&out), s(&root));
+    fog.extend(["--randomize", "lights,fog"]);
+    assert_refused(&fog, "unknown part \"fog\"");
     std::fs::write(dir.path().join("bad.json"), r#"{"fx": 500}"#).unwrap();
     let bad = dir.path().join("bad.json");
     assert_refused(&words(s(&mesh), s(&bad), s(&out), s(&root)), "bad.json");

@@ -6,6 +6,7 @@ use anyhow::{Context, Result, bail};
 use bop_dataset::{camera_from_json, read_json};
 use depth_render::SensorPreset;
 use ipdf::pipeline::{MeshRequest, Plan, Preset, RealSplit, run_mesh_pipeline, run_pipeline};
+use synth_data::Randomization;
 
 use super::choice::choice;
 use super::load_mesh;
@@ -66,6 +67,10 @@ pub struct PipelineArgs {
     #[arg(long, num_args = 2, value_names = ["NEAR", "FAR"], default_values_t = [0.45, 1.2],
           requires = "mesh")]
     pub distance: Vec<f64>,
+    /// What of `--mesh`'s renders' look is drawn at random, per frame: `all`, `none` or a comma
+    /// list of `lights`, `backgrounds`, `textures` and `camera` (see `ipdf synth --randomize`).
+    #[arg(long, default_value = "all", value_name = "PARTS", requires = "mesh")]
+    pub randomize: String,
     /// A real BOP dataset to score `--mesh`'s models on (its `models/` gives the object's
     /// symmetries and ADD(-S) points; nothing of it is used in training).
     #[arg(long, requires_all = ["mesh", "obj_id"])]
@@ -104,6 +109,7 @@ pub fn run(args: &PipelineArgs, seed: u64) -> Result<serde_json::Value> {
         camera: camera_from_json(&read_json(&camera_file)?, &camera_file, "", None)?,
         camera_file,
         distance: (near, far),
+        randomization: Randomization::parse(&args.randomize)?,
         real,
     };
     let plan = plan(args, args.preset.mesh_plan());

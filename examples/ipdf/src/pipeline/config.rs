@@ -253,13 +253,14 @@ pub struct PipelineConfig {
 pub const CONFIG_FILE: &str = "pipeline_config.json";
 
 /// The keys of [`PipelineConfig`] set by command-line flags, and the flags.
-const FLAGS: [(&str, &str); 14] = [
+const FLAGS: [(&str, &str); 15] = [
     ("preset", "--preset"),
     ("seed", "--seed"),
     ("mesh", "--mesh"),
     ("mesh_scale", "--mesh-scale"),
     ("camera", "--camera"),
     ("distance_m", "--distance"),
+    ("randomize", "--randomize"),
     ("real", "--real, --real-split and --obj-id"),
     ("frames_per_object", "--frames"),
     ("val_frames_per_object", "--val-frames"),

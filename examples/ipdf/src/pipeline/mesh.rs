@@ -55,6 +55,8 @@ pub struct MeshRequest {
     pub camera: bop_dataset::BopCamera,
     /// Nearest and farthest camera distance of the renders (metres).
     pub distance: (f64, f64),
+    /// What of the renders' look is drawn at random ([`Randomization::ALL`]: everything).
+    pub randomization: Randomization,
     /// The real split to score on, if any.
     pub real: Option<RealSplit>,
 }
@@ -75,6 +77,9 @@ pub struct MeshConfig {
     pub camera: PathBuf,
     /// Nearest and farthest camera distance of the renders (metres).
     pub distance_m: [f64; 2],
+    /// The parts of the renders' look drawn at random (`lights`, `backgrounds`, `textures`,
+    /// `camera`).
+    pub randomize: Vec<String>,
     /// The real split scored, if any.
     pub real: Option<RealSplit>,
     /// The dataset trained on.
@@ -119,6 +124,12 @@ pub fn run_mesh_pipeline(
         mesh_scale: request.mesh_scale,
         camera: request.camera_file.clone(),
         distance_m: [request.distance.0, request.distance.1],
+        randomize: request
+            .randomization
+            .names()
+            .into_iter()
+            .map(String::from)
+            .collect(),
         real: request.real.clone(),
         training_data: "randomised renders".into(),
     };
@@ -196,7 +207,7 @@ fn synthesize_renders(
             occluders: 2,
             sensor: plan.sensor.map(SensorPreset::sensor),
             mask_errors: None,
-            randomization: Randomization::ALL,
+            randomization: request.randomization,
             seed: split_seed,
         };
         let progress = bar(frames as u64, "frames");
@@ -355,7 +366,7 @@ impl MeshReport {
         let p = &c.plan;
         let mut out = format!(
             "# {}: a pose model from its mesh\n\n{} preset, seed {}: {} training and {} \
-             validation renders of `{}` (randomised looks, {}), {} on {}-pixel crops, {} \
+             validation renders of `{}` (randomised: {}; {}), {} on {}-pixel crops, {} \
              epochs of {} steps of {} (translation {} epochs), occlusion{}.\n\n",
             self.object,
             p.preset.name(),
@@ -363,6 +374,11 @@ impl MeshReport {
             p.frames,
             p.val_frames,
             c.mesh.display(),
+            if c.randomize.is_empty() {
+                "nothing".to_string()
+            } else {
+                c.randomize.join(", ")
+            },
             p.sensor
                 .map_or("clean depth".to_string(), |s| format!("{} depth", s.name())),
             p.encoder.name(),
@@ -378,10 +394,12 @@ impl MeshReport {
             },
         );
         out += &format!(
-            "Pseudo labels of the training renders: {:.1}° from the truth on average, {:.0}% of \
-             the symmetric poses found.\n\n",
-            self.labels.label_maad_deg,
-            100.0 * self.labels.coverage
+            "Pseudo labels of the training renders: a label within 5° of the rendered pose for \
+             {:.0}% of the instances; {:.1}° from a label to it on average (the mesh's \
+             symmetries are not known here, so the labels of a symmetric pose lie away from \
+             the one rendered).\n\n",
+            100.0 * self.labels.coverage,
+            self.labels.label_maad_deg
         );
         let r = &self.renders;
         out += &format!(
@@ -392,7 +410,8 @@ impl MeshReport {
         if let Some(t) = &r.translation {
             out += &format!(", translation error median {:.1} mm", t.median_error_mm);
         }
-        out += ".\n\n";
+        out += " (against the rendered pose alone: a symmetric object's other poses count as \
+                errors).\n\n";
         if let Some(real) = &self.real
             && let Some(accuracy) = &real.accuracy
         {
