@@ -58,39 +58,64 @@ fn assert_refused(args: &[&str], expected: &str) {
     assert!(stderr.trim_end().lines().count() <= 2, "{stderr}");
 }
 
-fn words<'a>(mesh: &'a str, camera: &'a str, out: &'a str, real: &'a str) -> Vec<&'a str> {
-    vec![
-        "pipeline",
-        "--mesh",
-        mesh,
-        "--camera",
-        camera,
-        "--out",
-        out,
-        "--frames",
-        "24",
-        "--val-frames",
-        "4",
-        "--epochs",
-        "1",
-        "--steps-per-epoch",
-        "3",
-        "--real",
-        real,
-        "--obj-id",
-        "5",
-    ]
+/// A temporary folder holding the fixture's camera file, and the paths of a run in it.
+struct Setup {
+    dir: tempfile::TempDir,
+    camera: PathBuf,
+    out: PathBuf,
+    mesh: PathBuf,
+    root: PathBuf,
+}
+
+impl Setup {
+    fn new() -> Self {
+        let dir = tempfile::tempdir().unwrap();
+        let (camera, out) = (dir.path().join("camera.json"), dir.path().join("run"));
+        write_camera(&camera);
+        let root = fixture();
+        let mesh = root.join("models/obj_000005.ply");
+        Self {
+            dir,
+            camera,
+            out,
+            mesh,
+            root,
+        }
+    }
+
+    /// The words of a miniature run with the camera file `camera`, then `extra`.
+    fn words<'a>(&'a self, camera: &'a Path, extra: &[&'a str]) -> Vec<&'a str> {
+        let mut words = vec![
+            "pipeline",
+            "--mesh",
+            s(&self.mesh),
+            "--camera",
+            s(camera),
+            "--out",
+            s(&self.out),
+            "--frames",
+            "24",
+            "--val-frames",
+            "4",
+            "--epochs",
+            "1",
+            "--steps-per-epoch",
+            "3",
+            "--real",
+            s(&self.root),
+            "--obj-id",
+            "5",
+        ];
+        words.extend(extra);
+        words
+    }
 }
 
 #[test]
 fn a_mesh_run_is_scored_on_the_real_frames() {
-    let dir = tempfile::tempdir().unwrap();
-    let (camera, out) = (dir.path().join("camera.json"), dir.path().join("run"));
-    write_camera(&camera);
-    let root = fixture();
-    let mesh = root.join("models/obj_000005.ply");
-    let args = words(s(&mesh), s(&camera), s(&out), s(&root));
-    ipdf_json(&args);
+    let setup = Setup::new();
+    let (out, root) = (&setup.out, &setup.root);
+    ipdf_json(&setup.words(&setup.camera, &[]));
 
     let report = read_json(&out.join("report.json"));
     assert_eq!(report["object"], "obj_000005");
@@ -111,7 +136,7 @@ fn a_mesh_run_is_scored_on_the_real_frames() {
             )
         })
         .collect();
-    let expected = instances_of(&root, OBJ_ID);
+    let expected = instances_of(root, OBJ_ID);
     assert_eq!(expected.len(), 2);
     assert_eq!(scored, expected, "{real}");
     assert_eq!(real["obj_id"], OBJ_ID);
@@ -138,26 +163,20 @@ fn a_mesh_run_is_scored_on_the_real_frames() {
     }
 
     // A rerun with other renders is refused, naming the flag.
-    let mut other = args.clone();
-    other.extend(["--distance", "0.5", "1.0"]);
+    let other = setup.words(&setup.camera, &["--distance", "0.5", "1.0"]);
     assert_refused(&other, "distance_m (--distance)");
 }
 
 #[test]
 fn a_mesh_run_refuses_what_it_cannot_use() {
-    let dir = tempfile::tempdir().unwrap();
-    let (camera, out) = (dir.path().join("camera.json"), dir.path().join("run"));
-    write_camera(&camera);
-    let root = fixture();
-    let mesh = root.join("models/obj_000005.ply");
-    let mut far_first = words(s(&mesh), s(&camera), s(&out), s(&root));
-    far_first.extend(["--distance", "1.2", "0.4"]);
+    let setup = Setup::new();
+    let camera = &setup.camera;
+    let far_first = setup.words(camera, &["--distance", "1.2", "0.4"]);
     assert_refused(&far_first, "--distance must be two distances");
-    let mut fog = words(s(&mesh), s(&camera), s(&out), s(&root));
-    fog.extend(["--randomize", "lights,fog"]);
+    let fog = setup.words(camera, &["--randomize", "lights,fog"]);
     assert_refused(&fog, "unknown part \"fog\"");
-    std::fs::write(dir.path().join("bad.json"), r#"{"fx": 500}"#).unwrap();
-    let bad = dir.path().join("bad.json");
-    assert_refused(&words(s(&mesh), s(&bad), s(&out), s(&root)), "bad.json");
-    assert!(!out.exists());
+    let bad = setup.dir.path().join("bad.json");
+    std::fs::write(&bad, r#"{"fx": 500}"#).unwrap();
+    assert_refused(&setup.words(&bad, &[]), "bad.json");
+    assert!(!setup.out.exists());
 }

@@ -32,6 +32,14 @@ pub fn check_extension(
     Ok(())
 }
 
+/// Refuses a `--distance NEAR FAR` that is not 0 < NEAR ≤ FAR (finite).
+pub fn check_distance(near: f64, far: f64) -> anyhow::Result<()> {
+    if !(near.is_finite() && near > 0.0 && far >= near && far.is_finite()) {
+        anyhow::bail!("--distance must be two distances with 0 < NEAR ≤ FAR, got {near} {far}");
+    }
+    Ok(())
+}
+
 /// The object of a `--mesh` file in `scale` metres per unit, its repairs warned about, one of
 /// an implausible size (a `--mesh-scale` mistake) refused.
 pub fn load_mesh(path: &std::path::Path, scale: f64) -> anyhow::Result<synth_data::SynthObject> {

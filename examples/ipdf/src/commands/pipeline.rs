@@ -2,14 +2,14 @@
 //! user's (see `ipdf::pipeline`); this module maps the flags onto a [`Plan`].
 use std::path::PathBuf;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use bop_dataset::{camera_from_json, read_json};
 use depth_render::SensorPreset;
 use ipdf::pipeline::{MeshRequest, Plan, Preset, RealSplit, run_mesh_pipeline, run_pipeline};
 use synth_data::Randomization;
 
 use super::choice::choice;
-use super::load_mesh;
+use super::{check_distance, load_mesh};
 
 /// Arguments of `ipdf pipeline`.
 #[derive(Debug, clap::Args)]
@@ -90,9 +90,7 @@ pub fn run(args: &PipelineArgs, seed: u64) -> Result<serde_json::Value> {
         return Ok(serde_json::to_value(run_pipeline(&args.out, &plan, seed)?)?);
     };
     let (near, far) = (args.distance[0], args.distance[1]);
-    if !(near.is_finite() && near > 0.0 && far >= near && far.is_finite()) {
-        bail!("--distance must be two distances with 0 < NEAR ≤ FAR, got {near} {far}");
-    }
+    check_distance(near, far)?;
     let camera_file = args.camera.clone().context("--mesh needs --camera")?;
     let real = match (&args.real, args.obj_id) {
         (Some(dataset), Some(obj_id)) => Some(RealSplit {

@@ -1,6 +1,6 @@
 //! `ipdf synth`: a synthetic RGB-D dataset in BOP format (see `ipdf::synth`).
 use super::choice::choice;
-use super::load_mesh;
+use super::{check_distance, load_mesh};
 use std::path::PathBuf;
 
 use anyhow::{Result, bail};
@@ -101,9 +101,7 @@ pub fn run(args: &SynthArgs, seed: u64) -> Result<serde_json::Value> {
         bail!("--elevation must be two angles with 0 ≤ LOW ≤ HIGH ≤ 90, got {low} {high}");
     }
     let (near, far) = (args.distance[0], args.distance[1]);
-    if !(near.is_finite() && near > 0.0 && far >= near && far.is_finite()) {
-        bail!("--distance must be two distances with 0 < NEAR ≤ FAR, got {near} {far}");
-    }
+    check_distance(near, far)?;
     if !(0.0..=1.0).contains(&args.off_centre) {
         bail!("--off-centre must be in 0..=1, got {}", args.off_centre);
     }

@@ -283,8 +283,10 @@ fn flag_of(key: &str) -> String {
 /// Refuses a run folder whose recorded settings differ from `config`, naming the first that
 /// does (the settings given on the command line first): `pipeline_config.json`, or for a
 /// folder from an older version without one, the `"config"` of its `report.json`. A folder with
-/// neither is a new run, and `config` is recorded.
+/// neither is a new run: the folder is created and `config` recorded.
 pub fn check_and_record(out: &Path, config: &impl Serialize) -> Result<(), Error> {
+    std::fs::create_dir_all(out)
+        .map_err(|e| bop_dataset::FileError::new(out, "folder", e.to_string()))?;
     let config_path = out.join(CONFIG_FILE);
     let report_path = out.join("report.json");
     let (path, recorded) = if config_path.exists() {

@@ -8,7 +8,6 @@
 use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 use bop_dataset::{BopDataset, read_json_as, write_atomically, write_json};
 use depth_render::SensorPreset;
@@ -20,12 +19,12 @@ use synth_data::{Randomization, SynthObject, SynthOptions, Variant, ViewRange, s
 
 use super::config::{Plan, check_and_record};
 use super::report::LabelAccuracy;
-use super::{PipelineSummary, first_instance_figure, label_split, on_threads, score_labels};
-use super::{train_request, write_figure};
+use super::{PipelineSummary, StageTimes, first_instance_figure, label_split, on_threads};
+use super::{score_labels, train_request, write_figure, write_report};
 use crate::Error;
 use crate::eval::instances::markdown;
 use crate::eval::{EvalRequest, EvalResult, evaluate_run};
-use crate::plots::plot_training_curves;
+use crate::plots::{plot_training_curves, write_png};
 use crate::progress::bar;
 use crate::training::{TRANSLATION_DIR, Target, is_trained, train_model};
 
@@ -115,8 +114,6 @@ pub fn run_mesh_pipeline(
     request: &MeshRequest,
     seed: u64,
 ) -> Result<PipelineSummary, Error> {
-    std::fs::create_dir_all(out)
-        .map_err(|e| bop_dataset::FileError::new(out, "folder", e.to_string()))?;
     let config = MeshConfig {
         plan: plan.clone(),
         seed,
@@ -135,49 +132,27 @@ pub fn run_mesh_pipeline(
     };
     check_and_record(out, &config)?;
     let (data, model) = (out.join(DATA), out.join(MODEL));
-    let mut timing = BTreeMap::new();
-    let mut stage = |name: &str, started: Instant| {
-        let seconds = started.elapsed().as_secs_f64();
-        timing.insert(name.to_string(), seconds);
-        eprintln!("pipeline: {name} done in {seconds:.0} s");
-    };
-    let started = Instant::now();
-    synthesize_renders(&data, plan, request, seed)?;
-    stage("synth", started);
-    let started = Instant::now();
-    let labels = label_renders(out, &data, plan, seed)?;
-    stage("label", started);
-    let started = Instant::now();
-    train_pose(&data, &model, plan, seed)?;
-    stage("train", started);
-    let started = Instant::now();
-    let (renders, real) = score(out, &model, plan, request.real.as_ref())?;
-    stage("eval", started);
-    let started = Instant::now();
+    let real = request.real.as_ref();
+    let mut stages = StageTimes::default();
+    stages.run("synth", || synthesize_renders(&data, plan, request, seed))?;
+    let labels = stages.run("label", || label_renders(out, &data, plan, seed))?;
+    stages.run("train", || train_pose(&data, &model, plan, seed))?;
+    let (renders, real_scores) = stages.run("eval", || score(out, &model, plan, real))?;
     let figures = out.join("figures");
     let object = &request.object.name;
-    draw_figures(&figures, &data, &model, plan, object, request.real.as_ref())?;
-    stage("figures", started);
+    stages.run("figures", || {
+        draw_figures(&figures, &data, &model, plan, object, real)
+    })?;
 
     let report = MeshReport {
-        object: request.object.name.clone(),
+        object: object.clone(),
         labels,
         renders,
-        real,
-        timing_s: timing,
+        real: real_scores,
+        timing_s: stages.0,
         config,
     };
-    let summary = PipelineSummary {
-        report: out.join("report.md"),
-        report_json: out.join("report.json"),
-        figures,
-        timing_s: report.timing_s.clone(),
-    };
-    write_json(&summary.report_json, &report)?;
-    let text = report.to_markdown();
-    write_atomically(&summary.report, |f| f.write_all(text.as_bytes()))?;
-    eprintln!("pipeline: report {}", summary.report.display());
-    Ok(summary)
+    write_report(out, &report, &report.to_markdown(), report.timing_s.clone())
 }
 
 /// Stage 1: the training and validation renders (complete scenes are skipped).
@@ -353,7 +328,7 @@ fn draw_figures(
     let dataset = BopDataset::new(dataset);
     if let Some(figure) = first_instance_figure(&rotation, &dataset, split, obj_id, level, &title)?
     {
-        write_figure(&path, || Ok(figure))?;
+        write_png(&path, &figure)?;
     }
     Ok(())
 }

@@ -99,42 +99,52 @@ impl ModelRun {
 
 /// Runs (or resumes) the pipeline of `plan` into `out`.
 pub fn run_pipeline(out: &Path, plan: &Plan, seed: u64) -> Result<PipelineSummary, Error> {
-    std::fs::create_dir_all(out)
-        .map_err(|e| bop_dataset::FileError::new(out, "folder", e.to_string()))?;
     config::check_and_record(out, &plan.config(seed))?;
-    let mut timing = BTreeMap::new();
-    let mut stage = |name: &str, started: Instant| {
-        let seconds = started.elapsed().as_secs_f64();
-        timing.insert(name.to_string(), seconds);
-        eprintln!("pipeline: {name} done in {seconds:.0} s");
-    };
-    let started = Instant::now();
-    synthesize_datasets(out, plan, seed)?;
-    stage("synth", started);
-    let started = Instant::now();
-    let labels = label_datasets(out, plan, seed)?;
-    stage("label", started);
+    let mut stages = StageTimes::default();
+    stages.run("synth", || synthesize_datasets(out, plan, seed))?;
+    let labels = stages.run("label", || label_datasets(out, plan, seed))?;
     let runs = model_runs(out, plan);
-    let started = Instant::now();
-    train_models(out, plan, &runs, seed)?;
-    stage("train", started);
-    let started = Instant::now();
-    let scores = evaluate_models(plan, &runs)?;
-    stage("eval", started);
-    let started = Instant::now();
-    let figures = draw_figures(out, plan, &runs)?;
-    stage("figures", started);
+    stages.run("train", || train_models(out, plan, &runs, seed))?;
+    let scores = stages.run("eval", || evaluate_models(plan, &runs))?;
+    let figures = stages.run("figures", || draw_figures(out, plan, &runs))?;
 
-    let report = report_of(plan, &runs, &scores, labels, timing, seed);
+    let report = report_of(plan, &runs, &scores, labels, stages.0, seed);
+    let text = report.to_markdown(&figures);
+    write_report(out, &report, &text, report.timing_s.clone())
+}
+
+/// Seconds per stage of a pipeline invocation.
+#[derive(Debug, Default)]
+struct StageTimes(BTreeMap<String, f64>);
+
+impl StageTimes {
+    /// Runs the stage `name`, recording and printing how long it took.
+    fn run<T>(&mut self, name: &str, stage: impl FnOnce() -> Result<T, Error>) -> Result<T, Error> {
+        let started = Instant::now();
+        let result = stage()?;
+        let seconds = started.elapsed().as_secs_f64();
+        self.0.insert(name.to_string(), seconds);
+        eprintln!("pipeline: {name} done in {seconds:.0} s");
+        Ok(result)
+    }
+}
+
+/// Writes a run's `report.json` (`report`) and `report.md` (`markdown`) into `out`; returns
+/// where they and the figures are.
+fn write_report(
+    out: &Path,
+    report: &impl Serialize,
+    markdown: &str,
+    timing_s: BTreeMap<String, f64>,
+) -> Result<PipelineSummary, Error> {
     let summary = PipelineSummary {
         report: out.join("report.md"),
         report_json: out.join("report.json"),
         figures: out.join("figures"),
-        timing_s: report.timing_s.clone(),
+        timing_s,
     };
-    write_json(&summary.report_json, &report)?;
-    let text = report.to_markdown(&figures);
-    write_atomically(&summary.report, |f| f.write_all(text.as_bytes()))?;
+    write_json(&summary.report_json, report)?;
+    write_atomically(&summary.report, |f| f.write_all(markdown.as_bytes()))?;
     eprintln!(
         "pipeline: report {} and {}, figures in {}",
         summary.report.display(),
