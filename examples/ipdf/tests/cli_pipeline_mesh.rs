@@ -175,6 +175,11 @@ fn a_mesh_run_refuses_what_it_cannot_use() {
     assert_refused(&far_first, "--distance must be two distances");
     let fog = setup.words(camera, &["--randomize", "lights,fog"]);
     assert_refused(&fog, "unknown part \"fog\"");
+    let split = setup.words(camera, &["--real-split", "tset"]);
+    assert_refused(
+        &split,
+        "split \"tset\" does not exist; the dataset's splits: test",
+    );
     let bad = setup.dir.path().join("bad.json");
     std::fs::write(&bad, r#"{"fx": 500}"#).unwrap();
     assert_refused(&setup.words(&bad, &[]), "bad.json");

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use bop_dataset::{camera_from_json, read_json};
+use bop_dataset::{BopDataset, camera_from_json, read_json};
 use depth_render::SensorPreset;
 use ipdf::pipeline::{MeshRequest, Plan, Preset, RealSplit, run_mesh_pipeline, run_pipeline};
 use synth_data::Randomization;
@@ -100,6 +100,10 @@ pub fn run(args: &PipelineArgs, seed: u64) -> Result<serde_json::Value> {
         }),
         _ => None,
     };
+    if let Some(real) = &real {
+        // A mistyped --real or --real-split is refused now, not after the training.
+        BopDataset::new(&real.dataset).scene_ids(&real.split)?;
+    }
     let request = MeshRequest {
         object: load_mesh(mesh, args.mesh_scale)?,
         mesh: mesh.clone(),
