@@ -48,17 +48,33 @@ pub fn depth_discrepancy(
     cap: f32,
 ) -> Option<f32> {
     let (mut total, mut count) = (0.0f64, 0u64);
-    for ((&o, &r), &s) in observed.iter().zip(rendered).zip(sigma) {
-        let (o_valid, r_valid) = (o > 0.0 && o.is_finite(), r > 0.0 && r.is_finite());
-        let error = match (o_valid, r_valid) {
-            (true, true) => ((o - r).abs() / s.max(f32::MIN_POSITIVE)).min(cap),
-            (true, false) => cap,
-            (false, _) => continue,
-        };
+    for error in pixel_discrepancies(observed, rendered, sigma, cap).flatten() {
         total += f64::from(error);
         count += 1;
     }
     (count > 0).then(|| (total / count as f64) as f32)
+}
+
+/// Each pixel's term `e(p)` of [`depth_discrepancy`] (in expected errors, at most `cap`), or
+/// `None` where it is no evidence (no observed depth).
+pub fn pixel_discrepancies<'a>(
+    observed: &'a [f32],
+    rendered: &'a [f32],
+    sigma: &'a [f32],
+    cap: f32,
+) -> impl Iterator<Item = Option<f32>> + 'a {
+    observed
+        .iter()
+        .zip(rendered)
+        .zip(sigma)
+        .map(move |((&o, &r), &s)| {
+            let (o_valid, r_valid) = (o > 0.0 && o.is_finite(), r > 0.0 && r.is_finite());
+            match (o_valid, r_valid) {
+                (true, true) => Some(((o - r).abs() / s.max(f32::MIN_POSITIVE)).min(cap)),
+                (true, false) => Some(cap),
+                (false, _) => None,
+            }
+        })
 }
 
 /// The Visible Surface Discrepancy of BOP (Hodaň et al., "On evaluation of 6D object pose

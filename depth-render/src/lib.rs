@@ -71,7 +71,7 @@ mod tile_cast;
 
 pub use camera::PinholeCamera;
 pub use colour_camera::ImageChain;
-pub use compare::{depth_discrepancy, unproject, visible_surface_discrepancy};
+pub use compare::{depth_discrepancy, pixel_discrepancies, unproject, visible_surface_discrepancy};
 pub use error::RenderError;
 pub use mask_errors::MaskErrors;
 pub use mesh::{TriangleMesh, bounding_box, max_distance};

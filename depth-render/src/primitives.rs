@@ -48,6 +48,99 @@ pub fn cylinder(radius: f64, height: f64, segments: u32) -> Result<TriangleMesh,
     )
 }
 
+/// A mug opening towards +z: a cylindrical cup of `radius` and `height` whose wall and floor
+/// are `wall` thick, with a handle on its +x side, a tube `handle_thickness` across bent along
+/// a half circle of radius `handle_reach` in the xz-plane centred on the outer wall (it stands
+/// `handle_reach + handle_thickness / 2` out and spans `±handle_reach` in z), capped flat
+/// against the wall. Bounding box of the cup centred at the origin; `segments` around the cup,
+/// a quarter of them around the tube. No rotation maps it onto itself: the handle breaks the
+/// turns about the axis, the open top the half turns that swap its ends.
+pub fn mug(
+    radius: f64,
+    height: f64,
+    wall: f64,
+    handle_reach: f64,
+    handle_thickness: f64,
+    segments: u32,
+) -> Result<TriangleMesh, RenderError> {
+    check_dimension("radius", radius)?;
+    check_dimension("height", height)?;
+    check_dimension("handle_reach", handle_reach)?;
+    check_dimension("handle_thickness", handle_thickness)?;
+    check_dimension("wall", wall)?;
+    if wall >= 0.5 * radius.min(height) {
+        return Err(RenderError::InvalidDimension {
+            name: "wall",
+            value: wall,
+        });
+    }
+    let tube = 0.5 * handle_thickness;
+    if handle_reach + tube > 0.5 * height || tube > 0.25 * radius {
+        return Err(RenderError::InvalidDimension {
+            name: "handle_reach",
+            value: handle_reach,
+        });
+    }
+    let (bottom, top) = (-0.5 * height, 0.5 * height);
+    let cup = revolve(
+        &[
+            (0.0, bottom),
+            (radius, bottom),
+            (radius, top),
+            (radius - wall, top),
+            (radius - wall, bottom + wall),
+            (0.0, bottom + wall),
+        ],
+        segments,
+    )?;
+    let mut positions: Vec<Point3<f64>> = cup.positions().iter().map(|p| p.cast()).collect();
+    let mut triangles = cup.triangles().to_vec();
+    let offset = positions.len() as u32;
+    let (steps, around) = (segments.max(8), (segments / 4).max(6));
+    let centre_line = |i: u32| {
+        let theta = std::f64::consts::PI * (f64::from(i) / f64::from(steps) - 0.5);
+        let outward = Vector3::new(theta.cos(), 0.0, theta.sin());
+        (
+            Point3::new(radius, 0.0, 0.0) + outward * handle_reach,
+            outward,
+        )
+    };
+    for i in 0..=steps {
+        let (centre, outward) = centre_line(i);
+        for j in 0..around {
+            let phi = std::f64::consts::TAU * f64::from(j) / f64::from(around);
+            positions.push(centre + tube * (phi.cos() * outward + phi.sin() * Vector3::y()));
+        }
+    }
+    let ring = |i: u32, j: u32| offset + i * around + j % around;
+    for i in 0..steps {
+        for j in 0..around {
+            let (a, b, c, d) = (
+                ring(i, j),
+                ring(i, j + 1),
+                ring(i + 1, j + 1),
+                ring(i + 1, j),
+            );
+            triangles.extend([[a, b, c], [a, c, d]]);
+        }
+    }
+    // The caps lie flat against the wall (the plane x = radius, touching it along the tube's
+    // middle): facing −z at the lower end, +z at the upper.
+    for (i, upper) in [(0, false), (steps, true)] {
+        let centre = positions.len() as u32;
+        positions.push(centre_line(i).0);
+        for j in 0..around {
+            let (a, b) = (ring(i, j), ring(i, j + 1));
+            triangles.push(if upper {
+                [centre, a, b]
+            } else {
+                [centre, b, a]
+            });
+        }
+    }
+    mesh(positions, triangles)
+}
+
 /// A closed cone: base of `radius` at `z = −height/2`, apex at `z = +height/2`.
 pub fn cone(radius: f64, height: f64, segments: u32) -> Result<TriangleMesh, RenderError> {
     check_dimension("radius", radius)?;

@@ -53,6 +53,21 @@ pub enum Primitive {
         /// Rings along each quarter-ellipse of the profile.
         rings: u32,
     },
+    /// A mug: a cup opening towards +z with a handle on its +x side ([`primitives::mug`]).
+    Mug {
+        /// Cup radius.
+        radius: f64,
+        /// Cup height along z.
+        height: f64,
+        /// Wall and floor thickness.
+        wall: f64,
+        /// Radius of the circle the handle's tube follows, centred on the wall.
+        handle_reach: f64,
+        /// Diameter of the handle's tube.
+        handle_thickness: f64,
+        /// Segments around the body.
+        segments: u32,
+    },
     /// A subdivided icosahedron.
     Sphere {
         /// Radius.
@@ -106,6 +121,21 @@ impl Primitive {
                 segments,
                 rings,
             } => primitives::bowl(radius, height, thickness, segments, rings),
+            Self::Mug {
+                radius,
+                height,
+                wall,
+                handle_reach,
+                handle_thickness,
+                segments,
+            } => primitives::mug(
+                radius,
+                height,
+                wall,
+                handle_reach,
+                handle_thickness,
+                segments,
+            ),
             Self::Sphere {
                 radius,
                 subdivisions,
@@ -121,7 +151,7 @@ impl Primitive {
     /// vertices onto themselves (3 for a box with distinct edges, 7 more for a square prism, 23
     /// for a cube, 11 for the tetrahedron, 59 for the icosahedron, all without the identity),
     /// and for solids of revolution the z-axis plus, for the cylinder, the half-turn that swaps
-    /// its caps. A sphere's symmetry (all of SO(3)) has no such form: an error.
+    /// its caps; none for a mug (its handle and open top break the cylinder's). A sphere's symmetry (all of SO(3)) has no such form: an error.
     pub fn symmetry(&self) -> Result<ShapeSymmetry, RenderError> {
         let revolution = |flip: bool| ShapeSymmetry {
             discrete: if flip {
@@ -148,6 +178,10 @@ impl Primitive {
         Ok(match self {
             Self::Cylinder { .. } => revolution(true),
             Self::Cone { .. } | Self::Bowl { .. } => revolution(false),
+            Self::Mug { .. } => ShapeSymmetry {
+                discrete: Vec::new(),
+                continuous: Vec::new(),
+            },
             Self::Sphere { .. } => {
                 return Err(RenderError::SymmetryNotRepresentable { shape: "sphere" });
             }

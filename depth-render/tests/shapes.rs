@@ -247,3 +247,100 @@ fn regular_solids_and_a_bowl_rest_as_expected() {
         Err(RenderError::NoRestingPose { .. })
     ));
 }
+
+/// The mug is closed and outward-wound, with the volume of its cup (outer solid less the
+/// inside) plus its handle (Pappus: the tube's cross-section times the half circle its centre
+/// follows), the handle where its dimensions put it, and refused dimensions named.
+#[test]
+fn a_mug_is_a_closed_cup_with_a_handle() {
+    let (radius, height, wall, reach, thickness, n) = (0.04, 0.095, 0.004, 0.03, 0.008, 96u32);
+    let mug = primitives::mug(radius, height, wall, reach, thickness, n).unwrap();
+    assert!(closed(&mug));
+    let (lo, hi) = mug.bounds();
+    assert!(
+        (f64::from(hi.x) - (radius + reach + 0.5 * thickness)).abs() < 1e-5,
+        "{hi}"
+    );
+    assert!((f64::from(lo.x) + radius).abs() < 1e-6);
+    assert!((f64::from(hi.z) - 0.5 * height).abs() < 1e-6);
+    let polygon =
+        |r: f64, k: u32| f64::from(k) / 2.0 * r * r * (std::f64::consts::TAU / f64::from(k)).sin();
+    let cup = polygon(radius, n) * height - polygon(radius - wall, n) * (height - wall);
+    let handle = polygon(0.5 * thickness, n / 4) * reach * std::f64::consts::PI;
+    let volume = mug.signed_volume();
+    // Cup and handle are each closed, so their signed volumes add.
+    assert!(
+        (volume - (cup + handle)).abs() / (cup + handle) < 1e-3,
+        "{volume} against {}",
+        cup + handle
+    );
+    let shape = Primitive::Mug {
+        radius,
+        height,
+        wall,
+        handle_reach: reach,
+        handle_thickness: thickness,
+        segments: n,
+    };
+    let symmetry = shape.symmetry().unwrap();
+    assert!(symmetry.discrete.is_empty() && symmetry.continuous.is_empty());
+    for (bad, name) in [
+        (
+            primitives::mug(radius, height, wall, 0.046, thickness, n),
+            "handle_reach",
+        ),
+        (
+            primitives::mug(radius, height, 0.03, reach, thickness, n),
+            "wall",
+        ),
+    ] {
+        assert!(
+            matches!(bad, Err(RenderError::InvalidDimension { name: found, .. }) if found == name)
+        );
+    }
+}
+
+/// The mug's ambiguity depends on the view: seen from the side with the handle turned away from
+/// the camera, a turn of 20° about its axis renders the same depth (but for silhouette pixels
+/// of the tessellated cup), with the handle towards the camera it moves the handle's pixels.
+#[test]
+fn a_mug_turned_about_its_axis_looks_the_same_only_with_its_handle_hidden() {
+    let shape = Primitive::Mug {
+        radius: 0.04,
+        height: 0.095,
+        wall: 0.004,
+        handle_reach: 0.03,
+        handle_thickness: 0.008,
+        segments: 256,
+    };
+    let scene = Scene::new(&[shape.mesh().unwrap()]);
+    // Model z up the image (camera −y); the handle (+x) away from the camera (+z) or towards it.
+    let upright = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::FRAC_PI_2);
+    let place = |facing: f64, turn: f64| {
+        let rotation = upright
+            * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), facing + turn.to_radians());
+        Isometry3::from_parts(Translation3::new(0.0, 0.0, 0.5), rotation)
+    };
+    let changed = |facing: f64| {
+        let (a, b) = (
+            depth_at(&scene, place(facing, 0.0)),
+            depth_at(&scene, place(facing, 20.0)),
+        );
+        a.iter()
+            .zip(&b)
+            .filter(|(x, y)| (*x - *y).abs() > 2e-4)
+            .count()
+    };
+    // Which way the handle faces: model +x turned by `upright` then by `facing` about z.
+    let hidden = std::f64::consts::FRAC_PI_2;
+    assert!(
+        (upright * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), hidden) * Vector3::x()).z
+            > 0.99
+    );
+    let (away, towards) = (changed(hidden), changed(hidden + std::f64::consts::PI));
+    assert!(away <= 12, "{away} pixels differ with the handle hidden");
+    assert!(
+        towards >= 40,
+        "only {towards} pixels differ with the handle in view"
+    );
+}

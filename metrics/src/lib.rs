@@ -70,6 +70,7 @@
 
 mod distribution;
 mod error;
+mod label_set;
 mod nearest;
 mod pose_error;
 mod score;
@@ -77,6 +78,7 @@ mod symmetry;
 
 pub use distribution::{Distribution, GridCell, MASS_SUM_TOLERANCE};
 pub use error::MetricsError;
+pub use label_set::{completeness, precision, share_within};
 pub use nearest::{REFINE_BELOW, nearest_distances};
 pub use pose_error::{ModelPoints, add, add_s, auc, translation_error};
 pub use score::{

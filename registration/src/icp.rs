@@ -2,7 +2,7 @@
 
 use std::num::NonZeroUsize;
 
-use nalgebra::{Isometry3, Point3, Vector3};
+use nalgebra::{Isometry3, Point3, Translation3, Unit, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 
 use crate::cloud::centre_and_radius;
@@ -242,6 +242,80 @@ pub fn refine_icp(
         inlier_rmse: score.inlier_rmse,
         iterations,
     })
+}
+
+/// A turn of the source that the correspondences at a pose hardly constrain: the source may
+/// turn about this axis (target frame) and hardly move off the target's surface, as a can
+/// about its own axis or a mug whose handle is out of sight.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WeakTurn {
+    /// The axis's direction.
+    pub axis: Unit<Vector3<f64>>,
+    /// A point on the axis (metres).
+    pub point: Point3<f64>,
+    /// The direction's eigenvalue over the largest in the point-to-plane normal equations
+    /// (turns measured by their sweep at the source's RMS radius, so that turns and shifts
+    /// compare).
+    pub ratio: f64,
+}
+
+impl WeakTurn {
+    /// The motion (target frame) turning by `angle` radians about the axis.
+    pub fn motion(&self, angle: f64) -> Isometry3<f64> {
+        let centre = Translation3::from(self.point.coords);
+        centre
+            * Isometry3::from_parts(
+                Translation3::identity(),
+                UnitQuaternion::from_axis_angle(&self.axis, angle),
+            )
+            * centre.inverse()
+    }
+}
+
+/// The turns of `pose` (source → target) that the point-to-plane correspondences there leave
+/// under `min_ratio` of the best-constrained direction ([`IcpOptions::min_eigen_ratio`]
+/// explains the measure), weakest first; a direction that is mostly a shift (a plane sliding)
+/// is no turn and is left out. Pairs are made as one [`refine_icp`] iteration makes them under
+/// `options` (distance, normal test); needs target normals.
+pub fn weak_turns(
+    source: &PointCloud,
+    target: &PointCloud,
+    target_index: &PointIndex,
+    pose: &Isometry3<f64>,
+    options: &IcpOptions,
+    min_ratio: f64,
+) -> Result<Vec<WeakTurn>, RegistrationError> {
+    options.validate()?;
+    let normals = target_normals(target)?;
+    let normal_test = options
+        .max_normal_angle
+        .map(|angle| NormalTest::new(source, target, angle))
+        .transpose()?;
+    let matches = correspondences(
+        source.points(),
+        target_index,
+        pose,
+        options.max_correspondence_distance,
+        normal_test.as_ref(),
+    );
+    let Some((centre, radius)) = centre_and_radius(source.points()) else {
+        return Ok(Vec::new());
+    };
+    let mut equations = NormalEquations::new();
+    for (i, m) in matches.iter().enumerate() {
+        let Some(m) = m else { continue };
+        let moved = pose * source.points()[i].cast::<f64>();
+        let target = target.points()[m.index as usize].cast::<f64>();
+        let normal: Vector3<f64> = normals[m.index as usize].cast();
+        equations.add_point_to_plane(&moved.coords, &target.coords, &normal, 1.0);
+    }
+    let mut turns: Vec<WeakTurn> = equations
+        .weak_turns(&(pose * centre), radius, min_ratio)
+        .into_iter()
+        .map(|(axis, point, ratio)| WeakTurn { axis, point, ratio })
+        .collect();
+    turns.sort_by(|a, b| a.ratio.total_cmp(&b.ratio));
+    Ok(turns)
 }
 
 /// The target's normals, which point-to-plane ICP needs.
@@ -509,25 +583,7 @@ mod tests {
         // A cylinder's model points (~2 mm apart) and the noisy part of it seen from +x and above
         // (σ = 1 mm along the normal, as a depth sensor's at 0.8 m): the correspondences cannot
         // fix the turn about the axis.
-        let mut rng = ChaCha8Rng::seed_from_u64(3);
-        let (points, normals) = cylinder(&mut rng, 8000);
-        let target = PointCloud::new(points)
-            .unwrap()
-            .with_normals(normals)
-            .unwrap();
-        let (seen, seen_normals): (Vec<_>, Vec<_>) = {
-            let (points, normals) = cylinder(&mut rng, 3000);
-            points
-                .into_iter()
-                .zip(normals)
-                .filter(|(p, n)| n.x > 0.2 || n.z > 0.0 && p.x > 0.0)
-                .map(|(p, n)| (p + n * (rng.random::<f32>() - 0.5) * 0.0035, n))
-                .unzip()
-        };
-        let source = PointCloud::new(seen)
-            .unwrap()
-            .with_normals(seen_normals)
-            .unwrap();
+        let (source, target) = cylinder_and_view(3);
         let index = PointIndex::from_points(target.points());
         let run = |min_eigen_ratio| {
             let options = IcpOptions {
@@ -569,6 +625,91 @@ mod tests {
                 "{refused:?}"
             );
         }
+    }
+
+    /// The cylinder's target and the noisy part of it seen from +x and above, with normals.
+    fn cylinder_and_view(seed: u64) -> (PointCloud, PointCloud) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let (points, normals) = cylinder(&mut rng, 8000);
+        let target = PointCloud::new(points)
+            .unwrap()
+            .with_normals(normals)
+            .unwrap();
+        let (seen, seen_normals): (Vec<_>, Vec<_>) = {
+            let (points, normals) = cylinder(&mut rng, 3000);
+            points
+                .into_iter()
+                .zip(normals)
+                .filter(|(p, n)| n.x > 0.2 || n.z > 0.0 && p.x > 0.0)
+                .map(|(p, n)| (p + n * (rng.random::<f32>() - 0.5) * 0.0035, n))
+                .unzip()
+        };
+        let source = PointCloud::new(seen)
+            .unwrap()
+            .with_normals(seen_normals)
+            .unwrap();
+        (source, target)
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(16))]
+        /// A view of a cylinder, moved anywhere, leaves exactly one turn free: about the
+        /// cylinder's axis (the z-axis of the target's frame, through its origin), and a turn
+        /// about it keeps the view on the surface.
+        #[test]
+        fn the_free_turn_of_a_cylinder_is_its_axis(
+            seed in 0u64..1000,
+            axis in proptest::array::uniform3(-1.0..1.0f64),
+            angle in 0.0..3.0f64,
+            shift in proptest::array::uniform3(-0.3..0.3f64),
+        ) {
+            let (source, target) = cylinder_and_view(seed);
+            let index = PointIndex::from_points(target.points());
+            let axis = Vector3::from(axis);
+            proptest::prop_assume!(axis.norm() > 0.1);
+            let motion = Isometry3::new(Vector3::from(shift), axis.normalize() * angle);
+            // The source moved away, and the pose that brings it back.
+            let moved = source.transformed(&motion);
+            let pose = motion.inverse();
+            let options = IcpOptions {
+                max_correspondence_distance: 0.006,
+                max_normal_angle: Some(1.0),
+                ..IcpOptions::default()
+            };
+            let turns = weak_turns(&moved, &target, &index, &pose, &options, 1e-3).unwrap();
+            proptest::prop_assert_eq!(turns.len(), 1, "{:?}", turns);
+            let turn = turns[0];
+            proptest::prop_assert!(turn.axis.dot(&Vector3::z()).abs() > 0.999, "{:?}", turn);
+            let off_axis = Vector3::new(turn.point.x, turn.point.y, 0.0).norm();
+            proptest::prop_assert!(off_axis < 1e-3, "{:?}", turn);
+            proptest::prop_assert!(turn.ratio < 1e-3);
+            // Turned by 40° about it, the view still lies on the cylinder; about a
+            // perpendicular axis through the same point, it does not.
+            let on_surface = |pose: &Isometry3<f64>| overlap(moved.points(), &index, pose, 0.003);
+            let at_truth = on_surface(&pose);
+            proptest::prop_assert!(on_surface(&(turn.motion(0.7) * pose)) > 0.95 * at_truth);
+            let across = WeakTurn { axis: Vector3::x_axis(), ..turn };
+            proptest::prop_assert!(on_surface(&(across.motion(0.7) * pose)) < 0.5 * at_truth);
+        }
+    }
+
+    #[test]
+    fn a_lumpy_surface_has_no_free_turn() {
+        let (source, truth) = patch();
+        let (target, index) = with_normals(&source.transformed(&truth));
+        let source = with_normals(&source).0;
+        let options = IcpOptions {
+            max_correspondence_distance: 0.01,
+            max_normal_angle: Some(1.0),
+            ..IcpOptions::default()
+        };
+        let turns = weak_turns(&source, &target, &index, &truth, &options, 1e-3).unwrap();
+        assert!(turns.is_empty(), "{turns:?}");
+        let bad = IcpOptions {
+            max_correspondence_distance: -1.0,
+            ..options
+        };
+        assert!(weak_turns(&source, &target, &index, &truth, &bad, 1e-3).is_err());
     }
 
     #[test]

@@ -54,7 +54,9 @@ pub use cloud::PointCloud;
 pub use error::RegistrationError;
 pub use fgr::{FeatureCorrespondences, FgrAlignment, FgrOptions, align_fgr};
 pub use fpfh::{FPFH_LEN, Fpfh, FpfhOptions, compute_fpfh};
-pub use icp::{Alignment, IcpMethod, IcpOptions, RobustKernel, overlap, refine_icp};
+pub use icp::{
+    Alignment, IcpMethod, IcpOptions, RobustKernel, WeakTurn, overlap, refine_icp, weak_turns,
+};
 pub use neighbours::{Neighbour, PointIndex};
 pub use normals::{NormalOptions, NormalOrientation, estimate_normals};
 pub use prepare::{PrepareOptions, PreparedCloud, prepare_cloud};

@@ -3,8 +3,8 @@
 use std::ops::{AddAssign, SubAssign};
 
 use nalgebra::{
-    Isometry3, Matrix3, Matrix6, Point3, SymmetricEigen, Translation3, UnitQuaternion, Vector3,
-    Vector6,
+    Isometry3, Matrix3, Matrix6, Point3, SymmetricEigen, Translation3, Unit, UnitQuaternion,
+    Vector3, Vector6,
 };
 
 /// Normal equations JᵀWJ ξ = −JᵀWr for a left update `exp(ξ) · pose`, ξ = (ω, t): rotation
@@ -42,15 +42,7 @@ impl NormalEquations {
         radius: f64,
         min_ratio: f64,
     ) -> Option<Isometry3<f64>> {
-        // ξ (about the origin) = M ξc (a turn about the centre): t = tc + c × ω.
-        let mut about_centre = Matrix6::identity();
-        about_centre
-            .fixed_view_mut::<3, 3>(3, 0)
-            .copy_from(&centre.coords.cross_matrix());
-        let turn = 1.0 / radius.max(f64::MIN_POSITIVE);
-        let scale = Matrix6::from_diagonal(&Vector6::new(turn, turn, turn, 1.0, 1.0, 1.0));
-        let change = about_centre * scale;
-        let eigen = SymmetricEigen::new(change.transpose() * self.jtj * change);
+        let (change, eigen) = self.about_centre(centre, radius);
         let gradient = change.transpose() * self.jtr;
         let largest = eigen.eigenvalues.max();
         if !(largest.is_finite() && largest > 0.0) {
@@ -67,6 +59,61 @@ impl NormalEquations {
         step.iter()
             .all(|v| v.is_finite())
             .then(|| isometry_from_twist(&step))
+    }
+
+    /// The turns the residuals hardly constrain: in the frame of [`Self::solve_constrained`]
+    /// (a turn about `centre` swept at `radius`, and a shift), the eigenvectors with an
+    /// eigenvalue under `min_ratio` times the largest whose turn sweeps more than their shift
+    /// moves, each as a unit axis and a point on it (the shift that goes with the turn, taken
+    /// back to an axis; a component along the axis, a screw's pitch, is dropped), with its
+    /// eigenvalue ratio.
+    pub(crate) fn weak_turns(
+        &self,
+        centre: &Point3<f64>,
+        radius: f64,
+        min_ratio: f64,
+    ) -> Vec<(Unit<Vector3<f64>>, Point3<f64>, f64)> {
+        let (change, eigen) = self.about_centre(centre, radius);
+        let largest = eigen.eigenvalues.max();
+        if !(largest.is_finite() && largest > 0.0) {
+            return Vec::new();
+        }
+        let mut turns = Vec::new();
+        for (k, &value) in eigen.eigenvalues.iter().enumerate() {
+            let direction: Vector6<f64> = eigen.eigenvectors.column(k).into();
+            let (turn, shift) = (
+                direction.fixed_rows::<3>(0).norm(),
+                direction.fixed_rows::<3>(3).norm(),
+            );
+            if value >= min_ratio * largest || turn <= shift {
+                continue;
+            }
+            let twist = change * direction;
+            let omega: Vector3<f64> = twist.fixed_rows::<3>(0).into();
+            let t: Vector3<f64> = twist.fixed_rows::<3>(3).into();
+            let point = Point3::from(omega.cross(&t) / omega.norm_squared());
+            turns.push((Unit::new_normalize(omega), point, value / largest));
+        }
+        turns
+    }
+
+    /// The system taken to a turn about `centre` swept at `radius` and a shift: the change of
+    /// variables ξ = M ξc and the eigen-decomposition of MᵀJᵀJM.
+    fn about_centre(
+        &self,
+        centre: &Point3<f64>,
+        radius: f64,
+    ) -> (Matrix6<f64>, SymmetricEigen<f64, nalgebra::U6>) {
+        // ξ (about the origin) = M ξc (a turn about the centre): t = tc + c × ω.
+        let mut about_centre = Matrix6::identity();
+        about_centre
+            .fixed_view_mut::<3, 3>(3, 0)
+            .copy_from(&centre.coords.cross_matrix());
+        let turn = 1.0 / radius.max(f64::MIN_POSITIVE);
+        let scale = Matrix6::from_diagonal(&Vector6::new(turn, turn, turn, 1.0, 1.0, 1.0));
+        let change = about_centre * scale;
+        let eigen = SymmetricEigen::new(change.transpose() * self.jtj * change);
+        (change, eigen)
     }
 
     /// Residual `moved − target` (3 rows), Jacobian [−[moved]×, I]. Accumulated in closed form:

@@ -71,6 +71,11 @@ pub struct LabelOptions {
     pub good_score: f64,
     /// Labels closer than this (degrees) to a better one are merged into it.
     pub merge_angle_deg: f64,
+    /// Where the view leaves a turn of a label free, poses this many degrees apart are walked
+    /// along it and kept while accepted (0: off; see the `arc` module of this crate).
+    pub arc_step_deg: f64,
+    /// At most this many poses are added along free turns per instance, beyond `labels`.
+    pub arc_labels: usize,
     /// At most this many self-symmetries are used for re-seeding, spread evenly.
     pub max_symmetries: usize,
     /// Depth and mask are read at every n-th pixel of every n-th row ([`PixelLattice`]):
@@ -85,8 +90,8 @@ pub struct LabelOptions {
 impl Default for LabelOptions {
     /// K = 8 labels, M = 3 trials, re-seeding, voxel 1/40 of the diameter, 20,000 model
     /// samples, a Kinect's expected error as the unit, residuals capped at 3, labels scoring
-    /// under 1.3 and within 0.1 of the best, early stop under 0.9, merge within 2°, 32
-    /// symmetries, every other pixel, seed 0.
+    /// under 1.3 and within 0.1 of the best, early stop under 0.9, merge within 2°, poses
+    /// every 7.5° along free turns (at most 96 more), 32 symmetries, every other pixel, seed 0.
     fn default() -> Self {
         Self {
             labels: 8,
@@ -100,6 +105,8 @@ impl Default for LabelOptions {
             score_margin: 0.1,
             good_score: 0.9,
             merge_angle_deg: 2.0,
+            arc_step_deg: 7.5,
+            arc_labels: 96,
             max_symmetries: 32,
             pixel_stride: 2,
             seed: 0,
@@ -141,6 +148,12 @@ impl LabelOptions {
         }
         if !(self.merge_angle_deg.is_finite() && self.merge_angle_deg >= 0.0) {
             return Err(LabelError::option("merge_angle", "must be at least 0"));
+        }
+        if !(self.arc_step_deg.is_finite() && (0.0..=90.0).contains(&self.arc_step_deg)) {
+            return Err(LabelError::option(
+                "arc_step",
+                "must be 0 (off) to 90 degrees",
+            ));
         }
         for (name, value) in [
             ("labels", self.labels),

@@ -15,14 +15,15 @@ use registration::{
 };
 use so3_grid::geodesic_distance;
 
-use crate::score::{Observation, render_and_compare};
+use crate::arc::along_free_turns;
+use crate::score::{Acceptance, Comparison, Observation, compare_pose};
 use crate::symmetries::spread;
 use crate::{LabelOptions, ObjectModel, Strategy};
 use bop_dataset::PseudoLabel;
 
 /// Observed and model points pair up in the fine ICP stages only when their normals are
 /// within this angle (radians, 60°): the inside of a bowl never matches its outside.
-const MAX_NORMAL_ANGLE: f32 = std::f32::consts::FRAC_PI_3;
+pub(crate) const MAX_NORMAL_ANGLE: f32 = std::f32::consts::FRAC_PI_3;
 
 /// Fewest observed points (after downsampling) worth registering.
 const MIN_POINTS: usize = 10;
@@ -291,7 +292,7 @@ pub fn refine_pose(
 /// update the directions the points hardly constrain (eigenvalue under [`MIN_EIGEN_RATIO`] of
 /// the largest): the start is as good as the pose it came from but for the symmetry's own
 /// imperfection, and the turn about a can's or a bowl's axis only wanders.
-fn refine_symmetric_start(
+pub(crate) fn refine_symmetric_start(
     model: &ObjectModel,
     view: &PreparedCloud,
     pose: &Isometry3<f64>,
@@ -341,15 +342,56 @@ pub fn score_pose(
     pose: &Isometry3<f64>,
     options: &LabelOptions,
 ) -> f64 {
+    compare_in(model, observation, pose, options).map_or(f64::INFINITY, |c| f64::from(c.score))
+}
+
+/// [`score_pose`] with the pixels the pose leaves unexplained, for telling two accepted poses
+/// apart ([`Comparison::told_apart_from`]).
+pub fn compare_in(
+    model: &ObjectModel,
+    observation: &Observation,
+    pose: &Isometry3<f64>,
+    options: &LabelOptions,
+) -> Option<Comparison> {
     let sensor = options.sensor.sensor();
-    render_and_compare(
+    compare_pose(
         &model.scene,
         observation,
         pose,
         &sensor,
         options.outlier_sigmas as f32,
     )
-    .map_or(f64::INFINITY, f64::from)
+}
+
+/// The poses of `candidates` (best score first, the best first of all) that the observation
+/// does not tell apart from the best ([`Comparison::told_apart_from`]), in order, with the
+/// best's comparison; all of them when the best cannot be compared.
+fn not_told_apart(
+    model: &ObjectModel,
+    observation: &Observation,
+    options: &LabelOptions,
+    candidates: Vec<Scored>,
+) -> (Vec<Scored>, Option<Comparison>) {
+    let Some(best) = candidates
+        .first()
+        .and_then(|c| compare_in(model, observation, &c.0, options))
+    else {
+        return (candidates, None);
+    };
+    let told_apart: Vec<bool> = candidates
+        .par_iter()
+        .map(|c| {
+            compare_in(model, observation, &c.0, options)
+                .is_some_and(|comparison| comparison.told_apart_from(&best))
+        })
+        .collect();
+    let kept = candidates
+        .into_iter()
+        .zip(told_apart)
+        .filter(|(_, apart)| !apart)
+        .map(|(c, _)| c)
+        .collect();
+    (kept, Some(best))
 }
 
 /// One full trial from the random initial pose P0 of `index`: ICP from P0 itself (cheap,
@@ -423,11 +465,8 @@ pub fn label_instance(
     options: &LabelOptions,
     seed: u64,
 ) -> InstanceLabels {
-    let view = match observed_cloud(observation).and_then(|cloud| {
-        check_scale(&cloud, model.diameter)?;
-        observed_features(&cloud, model)
-    }) {
-        Ok(view) => view,
+    let (view, options) = match prepare_view(model, observation, options) {
+        Ok(prepared) => prepared,
         Err(failure) => {
             return InstanceLabels {
                 labels: Err(failure),
@@ -435,11 +474,25 @@ pub fn label_instance(
             };
         }
     };
-    let options = options.for_noise(noise_ratio(observation, &options.sensor.sensor()));
     InstanceLabels {
         warning: extent_warning(&view.cloud, model.diameter),
         labels: pose_set(model, &view, observation, &options, seed),
     }
+}
+
+/// Stages 1 and 2 with their checks, and `options` moved to the depth's noise
+/// ([`noise_ratio`], [`LabelOptions::for_noise`]): what every labelling of an instance starts
+/// from.
+pub(crate) fn prepare_view(
+    model: &ObjectModel,
+    observation: &Observation,
+    options: &LabelOptions,
+) -> Result<(PreparedCloud, LabelOptions), LabelFailure> {
+    let cloud = observed_cloud(observation)?;
+    check_scale(&cloud, model.diameter)?;
+    let view = observed_features(&cloud, model)?;
+    let options = options.for_noise(noise_ratio(observation, &options.sensor.sensor()));
+    Ok((view, options))
 }
 
 /// How noisy the observed depth is, as a multiple of what `sensor` leads to expect (1 for its
@@ -546,17 +599,22 @@ fn pose_set(
             best_pose,
         });
     }
+    let (candidates, best_comparison) = not_told_apart(model, observation, options, candidates);
     let merged = merge_duplicates(candidates, options.merge_angle_deg.to_radians());
     let rotations: Vec<UnitQuaternion<f64>> = merged.iter().map(|c| c.0.rotation).collect();
     let mut chosen = spread(&rotations, options.labels);
     chosen.sort_unstable();
-    Ok(chosen
-        .into_iter()
-        .map(|i| PseudoLabel {
-            pose: merged[i].0,
-            score: merged[i].1,
-        })
-        .collect())
+    let labels = chosen.into_iter().map(|i| merged[i]).collect();
+    let acceptance = Acceptance {
+        score: threshold.min(best_score + options.score_margin),
+        best: best_comparison,
+    };
+    Ok(
+        along_free_turns(model, view, observation, options, labels, &acceptance)
+            .into_iter()
+            .map(|(pose, score)| PseudoLabel { pose, score })
+            .collect(),
+    )
 }
 
 /// The poses `found` (model→camera, with its score) is most often mistaken for: `found`

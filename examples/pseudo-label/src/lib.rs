@@ -47,10 +47,12 @@
 //! }
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
+mod arc;
 mod dataset;
 mod error;
 mod instance;
 mod model;
+mod reference;
 mod report;
 mod score;
 pub mod symmetries;
@@ -60,11 +62,13 @@ pub use dataset::{
 };
 pub use error::LabelError;
 pub use instance::{
-    InstanceLabels, LabelFailure, align_from, extent_warning, global_alignment, initial_pose,
-    label_instance, noise_ratio, observed_cloud, observed_features, refine_pose, score_pose,
+    InstanceLabels, LabelFailure, align_from, compare_in, extent_warning, global_alignment,
+    initial_pose, label_instance, noise_ratio, observed_cloud, observed_features, refine_pose,
+    score_pose,
 };
 pub use model::ObjectModel;
+pub use reference::{ReferenceOptions, ReferenceSet, reference_set};
 pub use report::{
     COVERAGE_ANGLE_DEG, LabelReport, ObjectLabelScores, VISIBILITY_BINS, VisibilityBin, report,
 };
-pub use score::{Observation, PixelLattice, render_and_compare};
+pub use score::{Comparison, Observation, PixelLattice, compare_pose, render_and_compare};

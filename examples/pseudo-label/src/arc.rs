@@ -1,0 +1,132 @@
+//! Dense labels along a continuous ambiguity. Where a view cannot fix a turn of the object (a
+//! can about its axis, a mug whose handle is out of sight, a bowl), the accepted poses form an
+//! arc, and a few labels spread over the model's symmetries cover a tenth of it. From each
+//! label, the turns the observed points leave free ([`registration::weak_turns`]: a near-null
+//! direction of the point-to-plane normal equations at the label) are walked both ways in
+//! steps of `arc_step_deg`: each step is scored by render-and-compare and kept while the labels'
+//! acceptance rule accepts it (its score, and no part of the object misplaced); a step that
+//! fails is refined in the directions the points
+//! constrain and kept if it then passes without leaving its place. A walk ends where the view
+//! tells the pose apart (the handle comes into view), where it reaches a pose already kept (the
+//! circle closed), after a full turn, or when `arc_labels` poses have been added.
+use nalgebra::Isometry3;
+use registration::{IcpOptions, PreparedCloud, WeakTurn, weak_turns};
+use so3_grid::geodesic_distance;
+
+use crate::instance::{MAX_NORMAL_ANGLE, compare_in, refine_symmetric_start};
+use crate::score::Acceptance;
+use crate::{LabelOptions, ObjectModel, Observation};
+
+/// A pose and its score.
+type Scored = (Isometry3<f64>, f64);
+
+/// A turn whose eigenvalue is under this fraction of the largest is walked: looser than the
+/// refinement's 10⁻³ ([`crate::instance`]), since a walk that the view does not allow ends at
+/// its first step, and a can's turn about its axis measured up to 2·10⁻³ on Kinect depth.
+const WALK_RATIO: f64 = 1e-2;
+
+/// `labels` (best first) with the poses along their free turns added, best score first; each
+/// added pose passes `acceptance`.
+pub(crate) fn along_free_turns(
+    model: &ObjectModel,
+    view: &PreparedCloud,
+    observation: &Observation,
+    options: &LabelOptions,
+    labels: Vec<Scored>,
+    acceptance: &Acceptance,
+) -> Vec<Scored> {
+    if options.arc_step_deg <= 0.0 || options.arc_labels == 0 {
+        return labels;
+    }
+    let walk = Walk {
+        model,
+        view,
+        observation,
+        options,
+        step: options.arc_step_deg.to_radians(),
+        acceptance,
+    };
+    let mut kept = labels.clone();
+    let cap = labels.len() + options.arc_labels;
+    for label in &labels {
+        for turn in walk.free_turns(&label.0) {
+            for sign in [1.0, -1.0] {
+                walk.along(label, turn, sign, &mut kept, cap);
+            }
+        }
+    }
+    kept.sort_by(|a, b| a.1.total_cmp(&b.1));
+    kept
+}
+
+/// What one walk needs.
+struct Walk<'a> {
+    model: &'a ObjectModel,
+    view: &'a PreparedCloud,
+    observation: &'a Observation<'a>,
+    options: &'a LabelOptions,
+    /// Radians per step.
+    step: f64,
+    acceptance: &'a Acceptance,
+}
+
+impl Walk<'_> {
+    /// The free turns of `pose` (model→camera), in the model's frame.
+    fn free_turns(&self, pose: &Isometry3<f64>) -> Vec<WeakTurn> {
+        let options = IcpOptions {
+            max_correspondence_distance: 1.5 * self.model.voxel,
+            max_normal_angle: Some(MAX_NORMAL_ANGLE),
+            ..IcpOptions::default()
+        };
+        weak_turns(
+            &self.view.cloud,
+            &self.model.cloud.cloud,
+            &self.model.cloud.index,
+            &pose.inverse(),
+            &options,
+            WALK_RATIO,
+        )
+        .unwrap_or_default()
+    }
+
+    /// Walks from `start` about `turn` in the direction of `sign`, adding the poses it keeps
+    /// to `kept` until there are `cap`.
+    fn along(&self, start: &Scored, turn: WeakTurn, sign: f64, kept: &mut Vec<Scored>, cap: usize) {
+        let mut current = start.0;
+        let mut turned = 0.0;
+        while turned + self.step < std::f64::consts::TAU && kept.len() < cap {
+            // A left turn of camera→model is a right turn of model→camera.
+            let candidate = current * turn.motion(sign * self.step).inverse();
+            let near_kept = kept
+                .iter()
+                .any(|k| geodesic_distance(&k.0.rotation, &candidate.rotation) < 0.5 * self.step);
+            if near_kept {
+                return;
+            }
+            let Some(found) = self.accept(&candidate) else {
+                return;
+            };
+            kept.push(found);
+            current = found.0;
+            turned += self.step;
+        }
+    }
+
+    /// `candidate` with its score when it is accepted, else its refinement when that is
+    /// accepted and stays within half a step of it; `None` otherwise.
+    fn accept(&self, candidate: &Isometry3<f64>) -> Option<Scored> {
+        let compare = |pose: &Isometry3<f64>| {
+            compare_in(self.model, self.observation, pose, self.options)
+                .filter(|c| self.acceptance.accepts(c))
+                .map(|c| (*pose, f64::from(c.score)))
+        };
+        if let Some(found) = compare(candidate) {
+            return Some(found);
+        }
+        let refined = refine_symmetric_start(self.model, self.view, candidate)?;
+        if geodesic_distance(&refined.rotation, &candidate.rotation) > 0.5 * self.step {
+            return None;
+        }
+        compare(&refined)
+    }
+}
