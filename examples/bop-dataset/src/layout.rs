@@ -212,6 +212,12 @@ impl SceneDir {
         self.dir.join("scene_pseudo_gt.json")
     }
 
+    /// `scene_reference_gt.json`, beside `scene_gt.json`: the reference sets of `ipdf label
+    /// --reference`, in the format of `scene_pseudo_gt.json`.
+    pub fn reference_gt_path(&self) -> PathBuf {
+        self.dir.join("scene_reference_gt.json")
+    }
+
     /// The colour image: `rgb/{im_id:06}.png`, or `.jpg` when only that exists.
     pub fn rgb_path(&self, im_id: u32) -> PathBuf {
         let png = self.dir.join("rgb").join(format!("{im_id:06}.png"));

@@ -11,6 +11,7 @@
 //!                           scene_gt.json        cam_R_m2c, cam_t_m2c (mm), obj_id per instance
 //!                           scene_gt_info.json   bbox_obj, bbox_visib, px_count_*, visib_fract
 //!                           scene_pseudo_gt.json the pseudo labels of `ipdf label`
+//!                           scene_reference_gt.json  the reference sets of `ipdf label --reference`
 //!                           rgb/{im_id:06}.png|jpg  depth/{im_id:06}.png
 //!                           mask/ and mask_visib/{im_id:06}_{inst:06}.png
 //! ```

@@ -95,9 +95,9 @@ fn unknown_names_of_library_values_name_the_flag() {
             "euler",
         ),
         (
-            &["synth", "--out", "x", "--objects", "can,mug"][..],
+            &["synth", "--out", "x", "--objects", "can,teapot"][..],
             "--objects",
-            "mug",
+            "teapot",
         ),
         (
             &["synth", "--out", "x", "--variant", "glossy"][..],

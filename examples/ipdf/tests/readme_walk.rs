@@ -110,6 +110,8 @@ fn the_readme_commands_run_in_order() {
         "grid_matrix.npy",
         "data/uniform/labels.json",
         "data/uniform/labels.md",
+        "data/mugs/labels.md",
+        "data/mugs/train/000000/scene_reference_gt.json",
         "depth.png",
         "rgb.png",
         "mask.png",

@@ -26,7 +26,8 @@ type Scored = (Isometry3<f64>, f64);
 const WALK_RATIO: f64 = 1e-2;
 
 /// `labels` (best first) with the poses along their free turns added, best score first; each
-/// added pose passes `acceptance`.
+/// added pose passes `acceptance`, and every pose kept scores within the score margin of the
+/// best of them all.
 pub(crate) fn along_free_turns(
     model: &ObjectModel,
     view: &PreparedCloud,
@@ -56,6 +57,10 @@ pub(crate) fn along_free_turns(
         }
     }
     kept.sort_by(|a, b| a.1.total_cmp(&b.1));
+    // A walk may find a better pose than the best before it: the score margin holds from that.
+    if let Some(best) = kept.first().map(|k| k.1) {
+        kept.retain(|k| k.1 <= acceptance.score.min(best + options.score_margin));
+    }
     kept
 }
 

@@ -13,8 +13,8 @@ use bop_dataset::{
 
 use depth_render::SensorPreset;
 
-use crate::instance::{LabelFailure, label_instance};
-use crate::{LabelError, ObjectModel, Observation, PixelLattice};
+use crate::instance::{InstanceLabels, LabelFailure, label_instance};
+use crate::{LabelError, ObjectModel, Observation, PixelLattice, ReferenceOptions, reference_set};
 
 /// How the labels of an instance after the first are found.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -245,11 +245,30 @@ pub struct DatasetOptions {
 /// relabels.
 pub const LABEL_OPTIONS_FILE: &str = "label_options.json";
 
+/// The file in a split's folder that records the options its reference sets
+/// (`scene_reference_gt.json`, [`reference_dataset`]) were made with, as
+/// [`LABEL_OPTIONS_FILE`] does for the labels.
+pub const REFERENCE_OPTIONS_FILE: &str = "reference_options.json";
+
+/// What a labelling of a split writes, and how it labels one instance: the labeller
+/// ([`label_dataset`]) or the reference labeller ([`reference_dataset`]).
+struct Job<'a> {
+    /// The split's options file.
+    options_file: &'static str,
+    /// What it records beyond the label options.
+    recorded: serde_json::Value,
+    /// A scene's output file.
+    output: fn(&SceneDir) -> std::path::PathBuf,
+    /// The labels of one instance (its seed given).
+    label: &'a (dyn Fn(&ObjectModel, &Observation, u64) -> InstanceLabels + Sync),
+}
+
 /// What `label_options.json` records: everything that decides the labels.
 fn recorded_options(
     dataset: &BopDataset,
     dataset_options: &DatasetOptions,
     options: &LabelOptions,
+    job: &Job,
 ) -> serde_json::Value {
     let models = dataset
         .models
@@ -268,6 +287,11 @@ fn recorded_options(
     {
         all.extend(fields);
     }
+    if let (Some(all), serde_json::Value::Object(fields)) =
+        (recorded.as_object_mut(), job.recorded.clone())
+    {
+        all.extend(fields);
+    }
     as_recorded(recorded)
 }
 
@@ -280,11 +304,53 @@ pub fn label_dataset(
     options: &LabelOptions,
     progress: &dyn Progress,
 ) -> Result<LabelSummary, LabelError> {
+    let job = Job {
+        options_file: LABEL_OPTIONS_FILE,
+        recorded: serde_json::json!({}),
+        output: SceneDir::pseudo_gt_path,
+        label: &|model, observation, seed| label_instance(model, observation, options, seed),
+    };
+    run_split(dataset, dataset_options, options, &job, progress)
+}
+
+/// The reference sets A ([`reference_set`]) of every instance of `options.split` in this
+/// shard, under the acceptance rule of `options`, written as `scene_reference_gt.json` beside
+/// each scene's `scene_pseudo_gt.json` (the same format: A's poses are its labels), resumable
+/// as [`label_dataset`] is, its options recorded in [`REFERENCE_OPTIONS_FILE`]. Slow: seconds
+/// to a minute per instance (docs/results.md measures it).
+pub fn reference_dataset(
+    dataset: &BopDataset,
+    dataset_options: &DatasetOptions,
+    options: &LabelOptions,
+    reference: &ReferenceOptions,
+    progress: &dyn Progress,
+) -> Result<LabelSummary, LabelError> {
+    reference.validate()?;
+    let job = Job {
+        options_file: REFERENCE_OPTIONS_FILE,
+        recorded: serde_json::json!({ "reference": reference }),
+        output: SceneDir::reference_gt_path,
+        label: &|model, observation, _| InstanceLabels {
+            labels: reference_set(model, observation, options, reference).map(|set| set.poses),
+            warning: None,
+        },
+    };
+    run_split(dataset, dataset_options, options, &job, progress)
+}
+
+/// The scene loop of [`label_dataset`] and [`reference_dataset`].
+fn run_split(
+    dataset: &BopDataset,
+    dataset_options: &DatasetOptions,
+    options: &LabelOptions,
+    job: &Job,
+    progress: &dyn Progress,
+) -> Result<LabelSummary, LabelError> {
     options.validate()?;
     dataset.check_models()?;
     let started = Instant::now();
     let scene_ids = shard_scenes(dataset, dataset_options)?;
-    record_options(dataset, dataset_options, options, &scene_ids)?;
+    record_options(dataset, dataset_options, options, job, &scene_ids)?;
     let mut summary = LabelSummary {
         scenes: scene_ids.len(),
         ..LabelSummary::default()
@@ -293,7 +359,7 @@ pub fn label_dataset(
     for scene_id in scene_ids {
         let scene = dataset.scene(&dataset_options.split, scene_id);
         let instances = scene_instances(&scene, dataset_options.obj_id)?;
-        if scene.pseudo_gt_path().exists() {
+        if (job.output)(&scene).exists() {
             summary.scenes_skipped += 1;
             progress.advance(instances.len() as u64);
             continue;
@@ -306,13 +372,13 @@ pub fn label_dataset(
                 );
             }
         }
-        let labelled = label_scene(&scene, &instances, &models, options, progress)?;
+        let labelled = label_scene(&scene, &instances, &models, options, job, progress)?;
         summary.count(&labelled);
         let labelled = labelled
             .into_iter()
             .map(|(im_id, list)| (im_id, list.into_iter().map(|(i, _)| i).collect()))
             .collect();
-        write_pseudo_gt(&scene.pseudo_gt_path(), &labelled)?;
+        write_pseudo_gt(&(job.output)(&scene), &labelled)?;
     }
     summary.seconds = started.elapsed().as_secs_f64();
     Ok(summary)
@@ -342,24 +408,23 @@ fn shard_scenes(
         .collect())
 }
 
-/// Records the options in the split's [`LABEL_OPTIONS_FILE`]: after discarding the labels of
+/// Records the options in the split's options file of `job`: after discarding the labels of
 /// `scene_ids` when relabelling, else after refusing options other than those recorded.
 fn record_options(
     dataset: &BopDataset,
     dataset_options: &DatasetOptions,
     options: &LabelOptions,
+    job: &Job,
     scene_ids: &[u32],
 ) -> Result<(), LabelError> {
     let options_path = dataset
         .root
         .join(&dataset_options.split)
-        .join(LABEL_OPTIONS_FILE);
-    let recorded = recorded_options(dataset, dataset_options, options);
+        .join(job.options_file);
+    let recorded = recorded_options(dataset, dataset_options, options, job);
     if dataset_options.relabel {
         for &scene_id in scene_ids {
-            let path = dataset
-                .scene(&dataset_options.split, scene_id)
-                .pseudo_gt_path();
+            let path = (job.output)(&dataset.scene(&dataset_options.split, scene_id));
             if path.exists() {
                 std::fs::remove_file(&path)
                     .map_err(|e| FileError::new(&path, "file", format!("cannot remove: {e}")))?;
@@ -384,6 +449,7 @@ fn label_scene(
     instances: &BTreeMap<u32, Vec<u32>>,
     models: &BTreeMap<u32, Option<Arc<ObjectModel>>>,
     options: &LabelOptions,
+    job: &Job,
     progress: &dyn Progress,
 ) -> Result<Vec<(u32, Vec<Outcome>)>, LabelError> {
     let cameras = read_scene_camera(&scene.camera_path())?;
@@ -391,7 +457,14 @@ fn label_scene(
         .par_iter()
         .map(|(&im_id, obj_ids)| {
             let result = match cameras.get(&im_id) {
-                Some(intrinsics) => label_image(scene, im_id, intrinsics, obj_ids, models, options),
+                Some(intrinsics) => {
+                    let image = Image {
+                        scene,
+                        im_id,
+                        intrinsics,
+                    };
+                    label_image(&image, obj_ids, models, options, job)
+                }
                 None => failed_image(
                     obj_ids,
                     &LabelFailure::Input(format!(
@@ -505,15 +578,26 @@ fn instance_seed(seed: u64, scene_id: u32, im_id: u32, instance: usize) -> u64 {
     x ^ (x >> 31)
 }
 
-/// The labels of every instance of one image.
-fn label_image(
-    scene: &SceneDir,
+/// One image of a scene.
+struct Image<'a> {
+    scene: &'a SceneDir,
     im_id: u32,
-    intrinsics: &Intrinsics,
+    intrinsics: &'a Intrinsics,
+}
+
+/// The labels of every instance of one image, by `job`.
+fn label_image(
+    image: &Image,
     obj_ids: &[u32],
     models: &BTreeMap<u32, Option<Arc<ObjectModel>>>,
     options: &LabelOptions,
+    job: &Job,
 ) -> Vec<Outcome> {
+    let Image {
+        scene,
+        im_id,
+        intrinsics,
+    } = *image;
     let depth_path = scene.depth_path(im_id);
     let depth = match read_depth(&depth_path, intrinsics.depth_scale) {
         Ok(depth) => depth,
@@ -556,7 +640,7 @@ fn label_image(
                 return failed_instance(obj_id, &LabelFailure::EmptyMask);
             };
             let seed = instance_seed(options.seed, scene.id, im_id, k);
-            let found = label_instance(model, &observation, options, seed);
+            let found = (job.label)(model, &observation, seed);
             let (labels, error, kind) = match &found.labels {
                 Ok(labels) => (labels.clone(), None, None),
                 Err(failure) => (Vec::new(), Some(failure.to_string()), Some(failure.kind())),

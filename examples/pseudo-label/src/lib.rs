@@ -58,7 +58,8 @@ mod score;
 pub mod symmetries;
 
 pub use dataset::{
-    DatasetOptions, LABEL_OPTIONS_FILE, LabelOptions, LabelSummary, Shard, Strategy, label_dataset,
+    DatasetOptions, LABEL_OPTIONS_FILE, LabelOptions, LabelSummary, REFERENCE_OPTIONS_FILE, Shard,
+    Strategy, label_dataset, reference_dataset,
 };
 pub use error::LabelError;
 pub use instance::{
@@ -69,6 +70,7 @@ pub use instance::{
 pub use model::ObjectModel;
 pub use reference::{ReferenceOptions, ReferenceSet, reference_set};
 pub use report::{
-    COVERAGE_ANGLE_DEG, LabelReport, ObjectLabelScores, VISIBILITY_BINS, VisibilityBin, report,
+    COVERAGE_ANGLE_DEG, InstanceAgainstReference, LabelReport, ObjectLabelScores, VISIBILITY_BINS,
+    VisibilityBin, report,
 };
 pub use score::{Comparison, Observation, PixelLattice, compare_pose, render_and_compare};

@@ -1,15 +1,17 @@
 //! Scores pseudo labels against the ground truth, where a dataset has one (`ipdf label
 //! --report`): per object, the label MAAD (mean over labels of the angle to the nearest
 //! rotation of the ground-truth symmetry set, the paper's table "Evaluation of the pseudo
-//! ground-truth orientation labels") and the coverage of the symmetry set.
+//! ground-truth orientation labels") and the coverage of the symmetry set; where the reference
+//! sets A of `ipdf label --reference` were made, each instance's completeness and precision
+//! against A.
 use std::collections::BTreeMap;
 
 use std::io::Write;
 
 use bop_dataset::{
-    BopDataset, FileError, GtInstance, ModelInfo, PseudoInstance, RotationRepairs, SceneDir,
-    read_models_info, read_pseudo_gt, read_scene_gt_info, read_scene_gt_repaired, write_atomically,
-    write_json,
+    BopDataset, FileError, GtInstance, ModelInfo, PseudoInstance, PseudoLabel, RotationRepairs,
+    SceneDir, read_models_info, read_pseudo_gt, read_scene_gt_info, read_scene_gt_repaired,
+    write_atomically, write_json,
 };
 use ipdf_metrics::SymmetryGroup;
 
@@ -80,13 +82,45 @@ pub struct ObjectLabelScores {
     /// ([`ipdf_metrics::SymmetryGroup::classes`]: the identity and each discrete symmetry, with its
     /// continuous orbit) within 5° of a label.
     pub coverage: f64,
+    /// Against the reference sets A of `ipdf label --reference` (`scene_reference_gt.json`),
+    /// where they were made: each labelled instance with a non-empty A.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub against_reference: Vec<InstanceAgainstReference>,
+    /// Mean over `against_reference` of the completeness (the share of A within 5° of a
+    /// label).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub completeness: Option<f64>,
+    /// Mean over `against_reference` of the precision (the share of labels within 5° of A).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub precision: Option<f64>,
+}
+
+/// One instance's labels against its reference set A.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct InstanceAgainstReference {
+    /// Its scene.
+    pub scene_id: u32,
+    /// Its image.
+    pub im_id: u32,
+    /// Its index in the image (mask order).
+    pub instance: usize,
+    /// Its labels.
+    pub labels: usize,
+    /// The poses of A.
+    pub reference: usize,
+    /// The share of A within 5° of a label.
+    pub completeness: f64,
+    /// The share of labels within 5° of A.
+    pub precision: f64,
 }
 
 /// The scores of a split's labels: `labels.json` of `ipdf label --report`, `{"variant",
 /// "objects": {name: {"obj_id", "instances", "labelled", "labelled_fraction", "off_instances",
 /// "by_visibility": [{"min_visible", "instances", "labelled", "labels", "label_maad_deg",
 /// "off_instances"}, …], "scores", "rejected_scores",
-/// "labels", "label_maad_deg", "coverage"}}}`.
+/// "labels", "label_maad_deg", "coverage", and where reference sets were made "completeness",
+/// "precision", "against_reference": [{"scene_id", "im_id", "instance", "labels", "reference",
+/// "completeness", "precision"}, …]}}}`.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct LabelReport {
     /// The dataset variant (`dataset_info.json`) or its folder's name.
@@ -118,11 +152,14 @@ impl LabelReport {
              {COVERAGE_ANGLE_DEG}° from every symmetric pose; scores = median (5th–95th \
              percentile) of the best score, in the sensor's expected errors; by visibility = \
              labelled of the instances under 45%, 45–70% and from 70% visible, and their \
-             label MAAD and off instances.\n\n\
+             label MAAD and off instances; completeness and precision = mean over the \
+             instances with a reference set A (`ipdf label --reference`) of the share of A \
+             within {COVERAGE_ANGLE_DEG}° of a label and of the labels within \
+             {COVERAGE_ANGLE_DEG}° of A.\n\n\
              | object | instances | labelled | by visibility | labels | label MAAD (°) | \
              coverage | off | scores, labelled | scores, unlabelled | label MAAD (°), off, by \
-             visibility |\n\
-             |---|---|---|---|---|---|---|---|---|---|---|\n",
+             visibility | completeness, precision |\n\
+             |---|---|---|---|---|---|---|---|---|---|---|---|\n",
             self.variant
         );
         let mut rows: Vec<_> = self.objects.iter().collect();
@@ -145,8 +182,17 @@ impl LabelReport {
                 0 => "–".into(),
                 _ => format!("{:.2}, {}", b.label_maad_deg, b.off_instances),
             });
+            let against_reference = match (s.completeness, s.precision) {
+                (Some(c), Some(p)) => format!(
+                    "{:.1}%, {:.1}% ({} instances)",
+                    100.0 * c,
+                    100.0 * p,
+                    s.against_reference.len()
+                ),
+                _ => "–".into(),
+            };
             text += &format!(
-                "| {} | {} | {} ({:.1}%) | {} | {} | {:.2} | {:.1}% | {} | {} | {} | {} |\n",
+                "| {} | {} | {} ({:.1}%) | {} | {} | {:.2} | {:.1}% | {} | {} | {} | {} | {} |\n",
                 name,
                 s.instances,
                 s.labelled,
@@ -159,6 +205,7 @@ impl LabelReport {
                 spread(&s.scores),
                 spread(&s.rejected_scores),
                 accuracy_by_visibility,
+                against_reference,
             );
         }
         text
@@ -215,6 +262,11 @@ fn score_scene(
     } else {
         None
     };
+    let references = if scene.reference_gt_path().exists() {
+        Some(read_pseudo_gt(&scene.reference_gt_path())?)
+    } else {
+        None
+    };
     for (im_id, instances) in &pseudo {
         for (k, instance) in instances.iter().enumerate() {
             let Some(truth) = gt.get(im_id).and_then(|list| list.get(k)) else {
@@ -236,9 +288,14 @@ fn score_scene(
                 .as_ref()
                 .and_then(|info| info.get(im_id)?.get(k))
                 .map(|i| i.visib_fract);
-            sums.entry(truth.obj_id)
-                .or_insert_with(|| ObjectSums::new(truth.obj_id))
-                .add(instance, truth, &group, visible);
+            let sums = sums
+                .entry(truth.obj_id)
+                .or_insert_with(|| ObjectSums::new(truth.obj_id));
+            sums.add(instance, truth, &group, visible);
+            let reference = references.as_ref().and_then(|r| r.get(im_id)?.get(k));
+            if let Some(reference) = reference {
+                sums.add_reference(&instance.labels, &reference.labels, (scene.id, *im_id, k));
+            }
         }
     }
     Ok(repairs)
@@ -354,6 +411,37 @@ impl ObjectSums {
         self.scores.off_instances += usize::from(off);
     }
 
+    /// Adds the labels of instance `at` (scene, image, index) against its reference set
+    /// `reference`, when both are non-empty.
+    fn add_reference(
+        &mut self,
+        labels: &[PseudoLabel],
+        reference: &[PseudoLabel],
+        at: (u32, u32, usize),
+    ) {
+        let rotations =
+            |set: &[PseudoLabel]| -> Vec<_> { set.iter().map(|l| l.pose.rotation).collect() };
+        let (labels, reference) = (rotations(labels), rotations(reference));
+        let angle = COVERAGE_ANGLE_DEG.to_radians();
+        let (Some(completeness), Some(precision)) = (
+            ipdf_metrics::completeness(&labels, &reference, angle),
+            ipdf_metrics::precision(&labels, &reference, angle),
+        ) else {
+            return;
+        };
+        self.scores
+            .against_reference
+            .push(InstanceAgainstReference {
+                scene_id: at.0,
+                im_id: at.1,
+                instance: at.2,
+                labels: labels.len(),
+                reference: reference.len(),
+                completeness,
+                precision,
+            });
+    }
+
     /// The scores: sums divided by their counts, percentiles of the best scores.
     fn finish(self) -> ObjectLabelScores {
         let mut scores = self.scores;
@@ -363,6 +451,13 @@ impl ObjectSums {
         }
         scores.coverage = self.coverage_sum / scores.labelled.max(1) as f64;
         scores.labelled_fraction = scores.labelled as f64 / scores.instances.max(1) as f64;
+        let against = &scores.against_reference;
+        let mean = |value: fn(&InstanceAgainstReference) -> f64| {
+            (!against.is_empty())
+                .then(|| against.iter().map(value).sum::<f64>() / against.len() as f64)
+        };
+        scores.completeness = mean(|i| i.completeness);
+        scores.precision = mean(|i| i.precision);
         scores.scores = percentiles(self.accepted);
         scores.rejected_scores = percentiles(self.rejected);
         scores

@@ -10,7 +10,8 @@ use depth_render::SensorPreset;
 use ipdf::plots::{plot_label_errors, write_png};
 use ipdf::progress::bar;
 use pseudo_label::{
-    DatasetOptions, LabelOptions, LabelSummary, Shard, Strategy, label_dataset, report,
+    DatasetOptions, LabelOptions, LabelSummary, ReferenceOptions, Shard, Strategy, label_dataset,
+    reference_dataset, report,
 };
 use serde_json::json;
 
@@ -58,6 +59,25 @@ pub struct LabelArgs {
     /// Merge labels closer than this many degrees.
     #[arg(long, default_value_t = 2.0)]
     pub merge_angle: f64,
+    /// Where the view leaves a turn of a label free (a can's axis, a mug with its handle
+    /// hidden), add poses this many degrees apart along it while accepted (0: off).
+    #[arg(long, default_value_t = LabelOptions::default().arc_step_deg)]
+    pub arc_step: f64,
+    /// At most this many poses added along free turns per instance.
+    #[arg(long, default_value_t = LabelOptions::default().arc_labels)]
+    pub arc_labels: usize,
+    /// Also find each instance's reference set A, every pose the labels' acceptance rule
+    /// accepts, by brute force (slow: seconds to a minute per instance), into
+    /// scene_reference_gt.json; --report then scores the labels' completeness and precision
+    /// against it.
+    #[arg(long)]
+    pub reference: bool,
+    /// The SO(3) grid level A is sampled on (4: cells about 3.75° apart).
+    #[arg(long, default_value_t = ReferenceOptions::default().level)]
+    pub reference_level: u8,
+    /// The grid level whose every rotation starts a search for A (1: 576 starts).
+    #[arg(long, default_value_t = ReferenceOptions::default().search_level)]
+    pub reference_search_level: u8,
     /// Read depth and masks at every n-th pixel of every n-th row (1: all; the observed cloud
     /// is downsampled to the voxel size anyway).
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=8))]
@@ -95,6 +115,8 @@ pub fn run(args: &LabelArgs, seed: u64) -> Result<serde_json::Value> {
         max_score: args.max_score,
         score_margin: args.score_margin,
         merge_angle_deg: args.merge_angle,
+        arc_step_deg: args.arc_step,
+        arc_labels: args.arc_labels,
         pixel_stride: args.pixel_stride,
         seed,
         ..LabelOptions::default()
@@ -113,6 +135,23 @@ pub fn run(args: &LabelArgs, seed: u64) -> Result<serde_json::Value> {
     result["failed"] = json!(summary.failures.values().sum::<usize>());
     result["images_per_s"] = json!(rate(summary.images));
     result["instances_per_s"] = json!(rate(summary.instances));
+    if args.reference {
+        let reference = ReferenceOptions {
+            search_level: args.reference_search_level,
+            level: args.reference_level,
+            ..ReferenceOptions::default()
+        };
+        let progress = bar(dataset.image_count(&args.split)? as u64, "reference images");
+        let found = reference_dataset(&dataset, &dataset_options, &options, &reference, &progress)?;
+        progress.finish_and_clear();
+        result["reference"] = json!({
+            "instances": found.instances,
+            "with_a_set": found.labelled,
+            "poses": found.labels,
+            "seconds": found.seconds,
+            "seconds_per_instance": found.seconds / found.instances.max(1) as f64,
+        });
+    }
     if let Some(path) = &args.report {
         let info = dataset.read_info()?.unwrap_or_else(|| DatasetInfo {
             variant: args
