@@ -133,18 +133,12 @@ impl Comparison {
     /// misplaces a small part of the object (a mug's handle) loses the part's pixels, which a
     /// mean over the window hardly notices.
     pub fn told_apart_from(&self, other: &Comparison) -> bool {
-        let lost: Vec<bool> = self
+        let (lost, won): (Vec<bool>, Vec<bool>) = self
             .unexplained
             .iter()
             .zip(&other.unexplained)
-            .map(|(&mine, &theirs)| mine && !theirs)
-            .collect();
-        let won: Vec<bool> = self
-            .unexplained
-            .iter()
-            .zip(&other.unexplained)
-            .map(|(&mine, &theirs)| theirs && !mine)
-            .collect();
+            .map(|(&mine, &theirs)| (mine && !theirs, theirs && !mine))
+            .unzip();
         let (lost, won) = (
             eroded_count(&lost, self.width),
             eroded_count(&won, self.width),

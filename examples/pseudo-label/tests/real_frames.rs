@@ -271,3 +271,38 @@ fn real_frames_are_all_labelled_and_their_labels_show_the_true_surface() {
         "{add} of 11 best labels correct by ADD(-S)"
     );
 }
+
+/// Every real instance's labels cover at least 90% of its reference set A, the poses the
+/// acceptance rule accepts found by brute force (`reference_dataset`: 576 ICP starts, then a
+/// flood fill on a level-4 grid), which share nothing with the labeller's search but the rule.
+#[test]
+fn real_label_sets_cover_the_poses_the_view_cannot_tell_apart() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path().join("ycbv");
+    copy_dir(&fixture(), &root);
+    let dataset = BopDataset::open(&root, "models").unwrap();
+    let options = LabelOptions::default();
+    label_split(&dataset, "test", &options).unwrap();
+    let dataset_options = pseudo_label::DatasetOptions {
+        split: "test".into(),
+        mesh_scale: 0.001,
+        obj_id: None,
+        shard: pseudo_label::Shard::ALL,
+        relabel: false,
+    };
+    let reference = pseudo_label::ReferenceOptions::default();
+    let found =
+        pseudo_label::reference_dataset(&dataset, &dataset_options, &options, &reference, &())
+            .unwrap();
+    assert_eq!((found.instances, found.labelled), (11, 11), "{found:?}");
+    let report = pseudo_label::report(&dataset, "test", &Default::default(), "ycbv").unwrap();
+    let instances: Vec<_> = report
+        .objects
+        .values()
+        .flat_map(|o| o.against_reference.iter())
+        .collect();
+    assert_eq!(instances.len(), 11);
+    for instance in instances {
+        assert!(instance.completeness >= 0.9, "{instance:?}");
+    }
+}
