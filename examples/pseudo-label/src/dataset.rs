@@ -682,6 +682,25 @@ mod tests {
     }
 
     #[test]
+    fn an_arc_step_out_of_range_is_refused_by_name() {
+        for step in [-1.0, 90.5, f64::NAN] {
+            let options = LabelOptions {
+                arc_step_deg: step,
+                ..LabelOptions::default()
+            };
+            let error = options.validate().unwrap_err().to_string();
+            assert!(error.contains("arc_step"), "{step}: {error}");
+        }
+        for step in [0.0, 90.0] {
+            let options = LabelOptions {
+                arc_step_deg: step,
+                ..LabelOptions::default()
+            };
+            assert!(options.validate().is_ok(), "{step}");
+        }
+    }
+
+    #[test]
     fn score_options_out_of_range_are_refused_by_name() {
         for (name, options) in [
             (

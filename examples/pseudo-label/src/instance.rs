@@ -269,7 +269,16 @@ pub fn initial_pose(
 ) -> Isometry3<f64> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     rng.set_stream(trial);
-    let rotation = so3_grid::random_rotation(&mut rng);
+    placed(model, view, so3_grid::random_rotation(&mut rng))
+}
+
+/// The model turned by `rotation` about its centroid and moved onto the observed centroid
+/// (model→camera): where a global alignment starts.
+pub(crate) fn placed(
+    model: &ObjectModel,
+    view: &PreparedCloud,
+    rotation: UnitQuaternion<f64>,
+) -> Isometry3<f64> {
     let model_centre = model.cloud.cloud.centroid().unwrap_or_else(Point3::origin);
     let view_centre = view.cloud.centroid().unwrap_or_else(Point3::origin);
     Translation3::from(view_centre.coords)

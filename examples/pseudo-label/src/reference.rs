@@ -23,14 +23,14 @@
 //! not depend on the number of threads.
 use std::collections::HashSet;
 
-use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 use so3_grid::{Grid, geodesic_distance};
 
 use crate::instance::{
-    LabelFailure, align_from, compare_in, prepare_view, refine_symmetric_start, score_pose,
+    LabelFailure, align_from, compare_in, placed, prepare_view, refine_symmetric_start,
 };
-use crate::score::Acceptance;
+use crate::score::{Acceptance, Comparison};
 use crate::{LabelError, LabelOptions, ObjectModel, Observation};
 use bop_dataset::PseudoLabel;
 
@@ -116,55 +116,44 @@ pub fn reference_set(
     options: &LabelOptions,
     reference: &ReferenceOptions,
 ) -> Result<ReferenceSet, LabelFailure> {
-    let grid_error = |e: so3_grid::GridError| LabelFailure::Input(format!("reference grid: {e}"));
     let (view, options) = prepare_view(model, observation, options)?;
-    let search = Grid::new(reference.search_level).map_err(grid_error)?;
-    let model_centre = model
-        .cloud
-        .cloud
-        .centroid()
-        .unwrap_or_else(nalgebra::Point3::origin);
-    let view_centre = view
-        .cloud
-        .centroid()
-        .unwrap_or_else(nalgebra::Point3::origin);
-    let found: Vec<Scored> = search
+    let search = Grid::new(reference.search_level).map_err(grid_failure)?;
+    // Each start's pose with its comparison (none where nothing can be compared), rendered
+    // once: the score sets the bar, the pixels are what the best tells poses apart by.
+    let found: Vec<(Isometry3<f64>, Option<Comparison>)> = search
         .rotations()
         .par_iter()
-        .filter_map(|rotation| {
-            let start = Translation3::from(view_centre.coords)
-                * Isometry3::from_parts(Translation3::identity(), *rotation)
-                * Translation3::from(-model_centre.coords);
-            let pose = align_from(model, &view, &start)?;
-            Some((pose, score_pose(model, observation, &pose, &options)))
+        .filter_map(|&rotation| {
+            let pose = align_from(model, &view, &placed(model, &view, rotation))?;
+            Some((pose, compare_in(model, observation, &pose, &options)))
         })
         .collect();
-    let best = found
+    let score = |c: &Option<Comparison>| c.as_ref().map_or(f64::INFINITY, |c| f64::from(c.score));
+    let (best_pose, best) = found
         .iter()
-        .copied()
-        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .min_by(|a, b| score(&a.1).total_cmp(&score(&b.1)))
+        .cloned()
         .ok_or_else(|| LabelFailure::Registration("no start aligned".into()))?;
+    let best_score = score(&best);
     let bar = |best: f64| options.max_score.min(best + options.score_margin);
-    if best.1 > options.max_score {
+    if best_score > options.max_score {
         return Err(LabelFailure::NoPoseAccepted {
-            best: best.1,
+            best: best_score,
             threshold: options.max_score,
-            best_pose: best.0,
+            best_pose,
         });
     }
     let acceptance = Acceptance {
-        score: bar(best.1),
-        best: compare_in(model, observation, &best.0, &options),
+        score: bar(best_score),
+        best,
     };
-    let seeds: Vec<Scored> = found
-        .into_par_iter()
-        .filter(|c| {
-            c.1 <= acceptance.score
-                && compare_in(model, observation, &c.0, &options)
-                    .is_some_and(|comparison| acceptance.accepts(&comparison))
-        })
+    let seeds: Vec<Isometry3<f64>> = found
+        .into_iter()
+        .filter(|(_, c)| c.as_ref().is_some_and(|c| acceptance.accepts(c)))
+        .map(|(pose, _)| pose)
         .collect();
-    let grid = Grid::new(reference.level).map_err(grid_error)?;
+    let grid = Grid::new(reference.level).map_err(grid_failure)?;
+    let model_centre = model.cloud.cloud.centroid().unwrap_or_else(Point3::origin);
     let fill = Flood {
         model,
         view: &view,
@@ -175,7 +164,7 @@ pub fn reference_set(
         model_centre: model_centre.coords,
     };
     let (accepted, cells, truncated) = fill.run(&seeds, &acceptance, reference.max_cells)?;
-    let best_score = accepted.iter().fold(best.1, |b, c| b.min(c.1));
+    let best_score = accepted.iter().fold(best_score, |b, c| b.min(c.1));
     let mut poses: Vec<PseudoLabel> = accepted
         .into_iter()
         .filter(|c| c.1 <= bar(best_score))
@@ -188,6 +177,11 @@ pub fn reference_set(
         cells,
         truncated,
     })
+}
+
+/// A grid the options asked for that cannot be built or searched.
+fn grid_failure(error: so3_grid::GridError) -> LabelFailure {
+    LabelFailure::Input(format!("reference grid: {error}"))
 }
 
 /// The flood fill of accepted cells on the fine grid.
@@ -206,21 +200,18 @@ impl Flood<'_> {
     /// cells tried, and whether `max_cells` cut the fill short.
     fn run(
         &self,
-        seeds: &[Scored],
+        seeds: &[Isometry3<f64>],
         acceptance: &Acceptance,
         max_cells: usize,
     ) -> Result<(Vec<Scored>, usize, bool), LabelFailure> {
-        let locate = |rotation: &UnitQuaternion<f64>| {
-            self.grid
-                .locate(rotation)
-                .map_err(|e| LabelFailure::Input(format!("reference grid: {e}")))
-        };
+        let locate =
+            |rotation: &UnitQuaternion<f64>| self.grid.locate(rotation).map_err(grid_failure);
         let mut visited: HashSet<u64> = HashSet::new();
         let mut queue: Vec<(u64, Isometry3<f64>)> = Vec::new();
         for seed in seeds {
-            let cell = locate(&seed.0.rotation)?;
+            let cell = locate(&seed.rotation)?;
             if visited.insert(cell) {
-                queue.push((cell, seed.0));
+                queue.push((cell, *seed));
             }
         }
         let (mut accepted, mut tried) = (Vec::new(), 0);
@@ -236,10 +227,7 @@ impl Flood<'_> {
             for (cell, outcome) in wave {
                 let Some(found) = outcome else { continue };
                 accepted.push(found);
-                let centre = self
-                    .grid
-                    .rotation(cell)
-                    .map_err(|e| LabelFailure::Input(format!("reference grid: {e}")))?;
+                let centre = self.grid.rotation(cell).map_err(grid_failure)?;
                 for axis in [Vector3::x(), Vector3::y(), Vector3::z()] {
                     for sign in [-1.0, 1.0] {
                         let turn = UnitQuaternion::from_scaled_axis(axis * sign * self.spacing);
@@ -264,7 +252,7 @@ impl Flood<'_> {
         acceptance: &Acceptance,
     ) -> Option<Scored> {
         let rotation = self.grid.rotation(cell).ok()?;
-        let centre = from * nalgebra::Point3::from(self.model_centre);
+        let centre = from * Point3::from(self.model_centre);
         let start = Isometry3::from_parts(
             Translation3::from(centre.coords - rotation * self.model_centre),
             rotation,
@@ -277,5 +265,41 @@ impl Flood<'_> {
         acceptance
             .accepts(&comparison)
             .then_some((pose, f64::from(comparison.score)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reference_options_out_of_range_are_refused_by_name() {
+        for (name, options) in [
+            (
+                "reference_level",
+                ReferenceOptions {
+                    level: so3_grid::MAX_LEVEL + 1,
+                    ..ReferenceOptions::default()
+                },
+            ),
+            (
+                "reference_search_level",
+                ReferenceOptions {
+                    search_level: 5,
+                    ..ReferenceOptions::default()
+                },
+            ),
+            (
+                "reference_max_cells",
+                ReferenceOptions {
+                    max_cells: 0,
+                    ..ReferenceOptions::default()
+                },
+            ),
+        ] {
+            let error = options.validate().unwrap_err().to_string();
+            assert!(error.starts_with(name), "{name}: {error}");
+        }
+        assert!(ReferenceOptions::default().validate().is_ok());
     }
 }
