@@ -9,12 +9,18 @@
 //! constrain and kept if it then passes without leaving its place. A walk ends where the view
 //! tells the pose apart (the handle comes into view), where it reaches a pose already kept (the
 //! circle closed), after a full turn, or when `arc_labels` poses have been added.
+//!
+//! A turn about one of the model's own axes of symmetry ([`ObjectModel::symmetry_axes`]: a
+//! can's, a bowl's) renders the same depth as the label it starts from: its poses, every
+//! `arc_step_deg` round the circle, are added with the label's score and no render, and the
+//! free turns along such an axis are not walked.
 use nalgebra::Isometry3;
 use registration::{IcpOptions, PreparedCloud, WeakTurn, weak_turns};
 use so3_grid::geodesic_distance;
 
-use crate::instance::{MAX_NORMAL_ANGLE, compare_in, refine_symmetric_start};
+use crate::instance::{MAX_NORMAL_ANGLE, compare_in, label_bar, refine_symmetric_start};
 use crate::score::Acceptance;
+use crate::symmetries::SymmetryAxis;
 use crate::{LabelOptions, ObjectModel, Observation};
 
 /// A pose and its score.
@@ -50,7 +56,19 @@ pub(crate) fn along_free_turns(
     let mut kept = labels.clone();
     let cap = labels.len() + options.arc_labels;
     for label in &labels {
+        for axis in &model.symmetry_axes {
+            walk.around(label, axis, &mut kept, cap);
+        }
+    }
+    for label in &labels {
         for turn in walk.free_turns(&label.0) {
+            let symmetric = model
+                .symmetry_axes
+                .iter()
+                .any(|a| a.holds(&turn.axis, &turn.point, SAME_AXIS * model.diameter));
+            if symmetric {
+                continue;
+            }
             for sign in [1.0, -1.0] {
                 walk.along(label, turn, sign, &mut kept, cap);
             }
@@ -59,10 +77,14 @@ pub(crate) fn along_free_turns(
     kept.sort_by(|a, b| a.1.total_cmp(&b.1));
     // A walk may find a better pose than the best before it: the score margin holds from that.
     if let Some(best) = kept.first().map(|k| k.1) {
-        kept.retain(|k| k.1 <= acceptance.score.min(best + options.score_margin));
+        kept.retain(|k| k.1 <= acceptance.score.min(label_bar(options, best)));
     }
     kept
 }
+
+/// A free turn is about an axis of symmetry when its axis lies within this fraction of the
+/// diameter of it (and within 5° of its direction).
+const SAME_AXIS: f64 = 0.05;
 
 /// What one walk needs.
 struct Walk<'a> {
@@ -94,6 +116,28 @@ impl Walk<'_> {
         .unwrap_or_default()
     }
 
+    /// Adds the turns of `start` about `axis` every step round the circle, with `start`'s
+    /// score, skipping those near a pose already kept, until there are `cap`.
+    fn around(&self, start: &Scored, axis: &SymmetryAxis, kept: &mut Vec<Scored>, cap: usize) {
+        let steps = (std::f64::consts::TAU / self.step).round().max(1.0) as usize;
+        for k in 1..steps {
+            if kept.len() >= cap {
+                return;
+            }
+            let angle = std::f64::consts::TAU * k as f64 / steps as f64;
+            let candidate = start.0 * axis.turn(angle);
+            if !self.near_kept(&candidate, kept) {
+                kept.push((candidate, start.1));
+            }
+        }
+    }
+
+    /// Whether a pose already kept is within half a step of `candidate`'s rotation.
+    fn near_kept(&self, candidate: &Isometry3<f64>, kept: &[Scored]) -> bool {
+        kept.iter()
+            .any(|k| geodesic_distance(&k.0.rotation, &candidate.rotation) < 0.5 * self.step)
+    }
+
     /// Walks from `start` about `turn` in the direction of `sign`, adding the poses it keeps
     /// to `kept` until there are `cap`.
     fn along(&self, start: &Scored, turn: WeakTurn, sign: f64, kept: &mut Vec<Scored>, cap: usize) {
@@ -102,10 +146,7 @@ impl Walk<'_> {
         while turned + self.step < std::f64::consts::TAU && kept.len() < cap {
             // A left turn of camera→model is a right turn of model→camera.
             let candidate = current * turn.motion(sign * self.step).inverse();
-            let near_kept = kept
-                .iter()
-                .any(|k| geodesic_distance(&k.0.rotation, &candidate.rotation) < 0.5 * self.step);
-            if near_kept {
+            if self.near_kept(&candidate, kept) {
                 return;
             }
             let Some(found) = self.accept(&candidate) else {

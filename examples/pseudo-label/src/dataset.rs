@@ -128,6 +128,12 @@ impl LabelOptions {
         }
     }
 
+    /// The highest score the acceptance rule accepts where the best pose scores `best`: under
+    /// `max_score` and within `score_margin` of the best.
+    pub fn accepted_score(&self, best: f64) -> f64 {
+        self.max_score.min(best + self.score_margin)
+    }
+
     fn validate(&self) -> Result<(), LabelError> {
         let positive = |name: &'static str, value: f64| {
             if value.is_finite() && value > 0.0 {

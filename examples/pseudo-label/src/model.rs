@@ -4,7 +4,9 @@ use depth_render::{Scene, TriangleMesh, sample_surface};
 use nalgebra::Isometry3;
 use registration::{NormalOrientation, PointCloud, PrepareOptions, PreparedCloud, prepare_cloud};
 
-use crate::symmetries::{discover_symmetries, principal_turns, spread};
+use crate::symmetries::{
+    SymmetryAxis, discover_symmetries, principal_turns, spread, symmetry_axes,
+};
 use crate::{LabelError, LabelOptions};
 
 /// One object, prepared for labelling.
@@ -24,6 +26,8 @@ pub struct ObjectModel {
     /// The turns about its principal axes that are not symmetries: the poses the first label
     /// is checked against ([`principal_turns`]).
     pub principal_turns: Vec<Isometry3<f64>>,
+    /// The axes about which every turn is a symmetry ([`symmetry_axes`]): a can's, a bowl's.
+    pub symmetry_axes: Vec<SymmetryAxis>,
     /// The mesh, ready to render.
     pub scene: Scene,
 }
@@ -31,7 +35,8 @@ pub struct ObjectModel {
 impl ObjectModel {
     /// Prepares `mesh` (metres) of object `obj_id`: `options.model_points` surface samples with
     /// face normals, downsampled at `options.voxel_fraction` of the diameter, FPFH, the
-    /// self-symmetries and the principal turns that are not symmetries.
+    /// self-symmetries, its axes of continuous symmetry and the principal turns that are not
+    /// symmetries.
     pub fn new(
         obj_id: u32,
         mesh: &TriangleMesh,
@@ -50,6 +55,7 @@ impl ObjectModel {
         kept.sort_unstable();
         let symmetries: Vec<_> = kept.into_iter().map(|i| found[i]).collect();
         let principal_turns = principal_turns(&cloud, voxel, &found);
+        let symmetry_axes = symmetry_axes(&cloud, voxel, &found);
         Ok(Self {
             obj_id,
             diameter,
@@ -57,6 +63,7 @@ impl ObjectModel {
             cloud,
             symmetries,
             principal_turns,
+            symmetry_axes,
             scene: Scene::new(std::slice::from_ref(mesh)),
         })
     }
@@ -71,6 +78,31 @@ mod tests {
     fn model(kind: ObjectKind) -> ObjectModel {
         let object = SynthObject::built_in(kind).unwrap();
         ObjectModel::new(1, &object.mesh, &LabelOptions::default()).unwrap()
+    }
+
+    /// A can and a bowl turn onto themselves about their axis (the mesh's z axis, through
+    /// the origin); a box has no such axis, and neither has a mug, whose handle is a
+    /// twentieth of its surface.
+    #[test]
+    fn cans_and_bowls_have_an_axis_of_symmetry_boxes_and_mugs_none() {
+        for kind in [ObjectKind::Can, ObjectKind::Bowl] {
+            let axes = model(kind).symmetry_axes;
+            assert_eq!(axes.len(), 1, "{kind:?}: {axes:?}");
+            let axis = axes[0];
+            // Through the origin along z: within a degree and a millimetre.
+            assert!(
+                axis.holds(&Vector3::z(), &nalgebra::Point3::origin(), 1e-3),
+                "{kind:?}: {axis:?}"
+            );
+            assert!(
+                axis.axis.dot(&Vector3::z()).abs() > 1f64.to_radians().cos(),
+                "{kind:?}: {axis:?}"
+            );
+        }
+        for kind in [ObjectKind::Box, ObjectKind::Mug] {
+            let axes = model(kind).symmetry_axes;
+            assert!(axes.is_empty(), "{kind:?}: {axes:?}");
+        }
     }
 
     /// A box with three different edges has 4 symmetries (the half turns about its axes) and

@@ -135,7 +135,6 @@ pub fn reference_set(
         .cloned()
         .ok_or_else(|| LabelFailure::Registration("no start aligned".into()))?;
     let best_score = score(&best);
-    let bar = |best: f64| options.max_score.min(best + options.score_margin);
     if best_score > options.max_score {
         return Err(LabelFailure::NoPoseAccepted {
             best: best_score,
@@ -144,7 +143,7 @@ pub fn reference_set(
         });
     }
     let acceptance = Acceptance {
-        score: bar(best_score),
+        score: options.accepted_score(best_score),
         best,
     };
     let seeds: Vec<Isometry3<f64>> = found
@@ -167,7 +166,7 @@ pub fn reference_set(
     let best_score = accepted.iter().fold(best_score, |b, c| b.min(c.1));
     let mut poses: Vec<PseudoLabel> = accepted
         .into_iter()
-        .filter(|c| c.1 <= bar(best_score))
+        .filter(|c| c.1 <= options.accepted_score(best_score))
         .map(|(pose, score)| PseudoLabel { pose, score })
         .collect();
     poses.sort_by(|a, b| a.score.total_cmp(&b.score));
