@@ -585,26 +585,11 @@ fn pose_set(
             let mut candidates = vec![trials];
             candidates.extend(mistaken);
             // Twice as many starts as labels, spread over the symmetries: enough for the
-            // labels to be spread too after failures and merging. From every pose that a label
-            // might be near (as the mistaken poses are screened): a pose the best is mistaken
-            // for may be a symmetry's turn from the truth.
+            // labels to be spread too after failures and merging.
             let rotations: Vec<_> = model.symmetries.iter().map(|s| s.rotation).collect();
             let starts = spread(&rotations, 2 * options.labels);
-            // A pose within a symmetry's turn of an earlier one would reach the same poses.
             candidates.sort_by(|a, b| a.score().total_cmp(&b.score()));
-            let best = candidates.first().map_or(f64::INFINITY, Candidate::score);
-            let bar = threshold.min(options.accepted_score(best) + SCREEN_SLACK);
-            let mut heads: Vec<Isometry3<f64>> = Vec::new();
-            for candidate in candidates.iter().filter(|c| c.score() <= bar) {
-                let reached = heads.iter().any(|head| {
-                    model.symmetries.iter().any(|s| {
-                        geodesic_distance(&(head * s).rotation, &candidate.pose.rotation) < REACHED
-                    })
-                });
-                if !reached {
-                    heads.push(candidate.pose);
-                }
-            }
+            let heads = [candidates[0].pose];
             let reseeded: Vec<Candidate> = heads
                 .par_iter()
                 .flat_map_iter(|head| starts[1..].iter().map(move |&i| head * model.symmetries[i]))
@@ -736,9 +721,6 @@ fn mistaken_poses(
         })
         .collect()
 }
-
-/// A pose within this angle (radians, 5°) of a re-seeding start is reached by re-seeding.
-const REACHED: f64 = 5.0 * std::f64::consts::PI / 180.0;
 
 /// ICP iterations of the screening of [`mistaken_poses`].
 const SCREEN_ITERATIONS: usize = 10;
