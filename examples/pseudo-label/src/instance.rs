@@ -429,12 +429,10 @@ fn trial(
     index: u64,
 ) -> Result<Candidate, LabelFailure> {
     let initial = initial_pose(model, view, seed, index);
-    let local = align_from(model, view, &initial)
+    let mut local = align_from(model, view, &initial)
         .map(|pose| Candidate::compared(model, observation, pose, options));
-    if let Some(found) = &local
-        && found.score() < options.good_score
-    {
-        return Ok(found.clone());
+    if let Some(found) = local.take_if(|found| found.score() < options.good_score) {
+        return Ok(found);
     }
     let global = global_alignment(model, view, seed, index).map(|pose| {
         let pose = refine_pose(model, view, &pose).unwrap_or(pose);
@@ -584,21 +582,21 @@ fn pose_set(
             let mistaken = mistaken_poses(model, view, observation, options, &trials);
             let mut candidates = vec![trials];
             candidates.extend(mistaken);
-            // Twice as many starts as labels, spread over the symmetries: enough for the
-            // labels to be spread too after failures and merging.
-            let rotations: Vec<_> = model.symmetries.iter().map(|s| s.rotation).collect();
-            let starts = spread(&rotations, 2 * options.labels);
-            candidates.sort_by(|a, b| a.score().total_cmp(&b.score()));
-            let heads = [candidates[0].pose];
-            let reseeded: Vec<Candidate> = heads
-                .par_iter()
-                .flat_map_iter(|head| starts[1..].iter().map(move |&i| head * model.symmetries[i]))
-                .filter_map(|start| {
-                    let pose = refine_symmetric_start(model, view, &start)?;
+            let best = candidates
+                .iter()
+                .min_by(|a, b| a.score().total_cmp(&b.score()))
+                .expect("not empty")
+                .pose;
+            if candidates.iter().any(|c| c.score() <= threshold) {
+                // Twice as many starts as labels, spread over the symmetries: enough for the
+                // labels to be spread too after failures and merging.
+                let rotations: Vec<_> = model.symmetries.iter().map(|s| s.rotation).collect();
+                let starts = spread(&rotations, 2 * options.labels);
+                candidates.extend(starts[1..].iter().filter_map(|&i| {
+                    let pose = refine_symmetric_start(model, view, &(best * model.symmetries[i]))?;
                     Some(Candidate::compared(model, observation, pose, options))
-                })
-                .collect();
-            candidates.extend(reseeded);
+                }));
+            }
             candidates
         }
         Strategy::Trials => (0..options.labels)
@@ -659,8 +657,7 @@ pub(crate) fn label_bar(options: &LabelOptions, best: f64) -> f64 {
 /// Poses this close under the acceptance rule's bar are no labels: which side of the bar they
 /// fall depends on the refinement that reached them. On the mugs of the Kinect set of
 /// docs/results.md, the same poses scored 0.002 under the bar through the labeller's
-/// refinements and over it through the reference labeller's, and were its only labels outside
-/// the reference sets.
+/// refinements and over it through the reference labeller's.
 const SCORE_DOUBT: f64 = 0.005;
 
 /// The poses `found` (model→camera, with its score) is most often mistaken for: `found`
