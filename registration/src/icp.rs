@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use crate::cloud::centre_and_radius;
 use crate::error::positive_metres;
 use crate::neighbours::{Neighbour, PointIndex};
-use crate::twist::{NormalEquations, kabsch};
+use crate::twist::{NormalEquations, kabsch, mean_shift};
 use crate::{PointCloud, RegistrationError};
 
 /// The error ICP minimises.
@@ -88,11 +88,16 @@ pub struct IcpOptions {
     /// within this many radians of its own (turned by the pose); needs normals on both clouds.
     /// Keeps the two sides of a thin wall (a bowl) from being matched to each other.
     pub max_normal_angle: Option<f32>,
+    /// Solve for the shift alone and keep the rotation of the initial pose: where a pose is
+    /// tried rotation by rotation (an SO(3) grid), ICP finds each rotation's best shift without
+    /// turning it towards a neighbour. Directions of the shift the correspondences hardly
+    /// constrain (along a flat face) are left out as `min_eigen_ratio` says.
+    pub shift_only: bool,
 }
 
 impl Default for IcpOptions {
     /// Point-to-plane, 7.5 mm (1.5 voxels of 5 mm), 30 iterations, 1e-6 / 1e-6, every
-    /// direction solved, no kernel, no normal test.
+    /// direction solved, no kernel, no normal test, rotation and shift.
     fn default() -> Self {
         Self {
             method: IcpMethod::PointToPlane,
@@ -103,6 +108,7 @@ impl Default for IcpOptions {
             min_eigen_ratio: 0.0,
             kernel: None,
             max_normal_angle: None,
+            shift_only: false,
         }
     }
 }
@@ -360,13 +366,20 @@ impl Step<'_> {
                     (moved, target, weight)
                 })
                 .collect();
-            return kabsch(&weighted);
+            return if self.options.shift_only {
+                mean_shift(&weighted)
+            } else {
+                kabsch(&weighted)
+            };
         };
         let mut equations = NormalEquations::new();
         for (moved, target, index) in pairs {
             let normal: Vector3<f64> = normals[index as usize].cast();
             let weight = kernel.map_or(1.0, |k| k.weight((moved - target).dot(&normal)));
             equations.add_point_to_plane(&moved.coords, &target.coords, &normal, weight);
+        }
+        if self.options.shift_only {
+            return equations.solve_shift(self.options.min_eigen_ratio);
         }
         match self.spread {
             Some((centre, radius)) => {
@@ -551,6 +564,34 @@ mod tests {
                 found.fitness > 0.95 && found.inlier_rmse < 5e-4,
                 "{method:?}: {found:?}"
             );
+        }
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(16))]
+        /// With `shift_only`, both methods keep the initial rotation to the last bit and find
+        /// the shift of a known motion when that rotation is the motion's.
+        #[test]
+        fn a_shift_only_solve_finds_the_shift_and_keeps_the_rotation(
+            shift in proptest::array::uniform3(-0.004..0.004f64),
+            turn in proptest::array::uniform3(-0.05..0.05f64),
+            point_to_plane in proptest::bool::ANY,
+        ) {
+            let (source, _) = patch();
+            let truth = Isometry3::new(Vector3::from(shift), Vector3::from(turn));
+            let (target, index) = with_normals(&source.transformed(&truth));
+            let options = IcpOptions {
+                method: if point_to_plane { IcpMethod::PointToPlane } else { IcpMethod::PointToPoint },
+                max_correspondence_distance: 0.01,
+                max_iterations: 100,
+                shift_only: true,
+                ..IcpOptions::default()
+            };
+            let initial = Isometry3::from_parts(Translation3::identity(), truth.rotation);
+            let found = refine_icp(&source, &target, &index, &initial, &options).unwrap();
+            proptest::prop_assert_eq!(found.pose.rotation, truth.rotation);
+            let error = (found.pose.translation.vector - truth.translation.vector).norm();
+            proptest::prop_assert!(error < 2e-4, "{} m off", error);
         }
     }
 

@@ -161,6 +161,31 @@ impl NormalEquations {
         );
     }
 
+    /// The Gauss–Newton update of the shift alone, the rotation held, without the directions
+    /// whose eigenvalue is under `min_ratio` times the largest (and never one under 10⁻⁹ of
+    /// it: those are numerically zero). `None` when the residuals fix no direction of the
+    /// shift or the result is not finite.
+    pub(crate) fn solve_shift(&self, min_ratio: f64) -> Option<Isometry3<f64>> {
+        let normal: Matrix3<f64> = self.jtj.fixed_view::<3, 3>(3, 3).into_owned();
+        let gradient: Vector3<f64> = self.jtr.fixed_rows::<3>(3).into_owned();
+        let eigen = SymmetricEigen::new(normal);
+        let largest = eigen.eigenvalues.max();
+        if !(largest.is_finite() && largest > 0.0) {
+            return None;
+        }
+        let mut shift = Vector3::zeros();
+        for (k, &value) in eigen.eigenvalues.iter().enumerate() {
+            if value >= min_ratio.max(1e-9) * largest {
+                let direction = eigen.eigenvectors.column(k);
+                shift -= direction * (direction.dot(&gradient) / value);
+            }
+        }
+        shift
+            .iter()
+            .all(|v| v.is_finite())
+            .then(|| Isometry3::from_parts(Translation3::from(shift), UnitQuaternion::identity()))
+    }
+
     /// The Gauss–Newton update, or `None` when the system is singular (too few or degenerate
     /// residuals) or not finite.
     pub(crate) fn solve(&self) -> Option<Isometry3<f64>> {
@@ -177,6 +202,24 @@ pub(crate) fn isometry_from_twist(twist: &Vector6<f64>) -> Isometry3<f64> {
         Translation3::new(twist[3], twist[4], twist[5]),
         UnitQuaternion::from_scaled_axis(Vector3::new(twist[0], twist[1], twist[2])),
     )
+}
+
+/// The shift minimising Σ wᵢ ‖sᵢ + t − dᵢ‖²: the weighted mean of dᵢ − sᵢ. `None` for no pairs
+/// or zero total weight.
+pub(crate) fn mean_shift(pairs: &[(Point3<f64>, Point3<f64>, f64)]) -> Option<Isometry3<f64>> {
+    let total: f64 = pairs.iter().map(|p| p.2).sum();
+    if pairs.is_empty() || total.is_nan() || total <= 0.0 {
+        return None;
+    }
+    let shift = pairs
+        .iter()
+        .map(|(s, d, w)| (d - s) * *w)
+        .sum::<Vector3<f64>>()
+        / total;
+    Some(Isometry3::from_parts(
+        Translation3::from(shift),
+        UnitQuaternion::identity(),
+    ))
 }
 
 /// The rigid transform minimising Σ wᵢ ‖T sᵢ − dᵢ‖² in closed form (Kabsch 1976 / Umeyama

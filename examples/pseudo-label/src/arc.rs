@@ -14,11 +14,11 @@
 //! can's, a bowl's) renders the same depth as the label it starts from: its poses, every
 //! `arc_step_deg` round the circle, are added with the label's score and no render, and the
 //! free turns along such an axis are not walked.
-use nalgebra::Isometry3;
+use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 use registration::{IcpOptions, PreparedCloud, WeakTurn, weak_turns};
 use so3_grid::geodesic_distance;
 
-use crate::instance::{MAX_NORMAL_ANGLE, compare_in, label_bar, refine_symmetric_start};
+use crate::instance::{MAX_NORMAL_ANGLE, compare_in, refine_shift, refine_symmetric_start};
 use crate::score::Acceptance;
 use crate::symmetries::SymmetryAxis;
 use crate::{LabelOptions, ObjectModel, Observation};
@@ -53,11 +53,19 @@ pub(crate) fn along_free_turns(
         step: options.arc_step_deg.to_radians(),
         acceptance,
     };
-    let mut kept = labels.clone();
     let cap = labels.len() + options.arc_labels;
+    let mut kept = Vec::with_capacity(cap);
+    // The neighbours of the best label are tried first: where the view tells them apart from
+    // it, it tells those of its symmetric counterparts apart from theirs.
+    let mut blurred = true;
     for label in &labels {
-        for axis in &model.symmetry_axes {
-            walk.around(label, axis, &mut kept, cap);
+        // A label on the circle of one before it has its neighbours on theirs.
+        if !walk.near_kept(&label.0, &kept) {
+            kept.push(*label);
+            walk.around_all(label, &mut kept, cap);
+            if blurred {
+                blurred = walk.nearby(label, &mut kept, cap);
+            }
         }
     }
     for label in &labels {
@@ -77,14 +85,14 @@ pub(crate) fn along_free_turns(
     kept.sort_by(|a, b| a.1.total_cmp(&b.1));
     // A walk may find a better pose than the best before it: the score margin holds from that.
     if let Some(best) = kept.first().map(|k| k.1) {
-        kept.retain(|k| k.1 <= acceptance.score.min(label_bar(options, best)));
+        kept.retain(|k| k.1 <= acceptance.score.min(options.accepted_score(best)));
     }
     kept
 }
 
 /// A free turn is about an axis of symmetry when its axis lies within this fraction of the
 /// diameter of it (and within 5° of its direction).
-const SAME_AXIS: f64 = 0.05;
+pub(crate) const SAME_AXIS: f64 = 0.05;
 
 /// What one walk needs.
 struct Walk<'a> {
@@ -116,6 +124,13 @@ impl Walk<'_> {
         .unwrap_or_default()
     }
 
+    /// [`Walk::around`] each of the model's axes of symmetry.
+    fn around_all(&self, start: &Scored, kept: &mut Vec<Scored>, cap: usize) {
+        for axis in &self.model.symmetry_axes {
+            self.around(start, axis, kept, cap);
+        }
+    }
+
     /// Adds the turns of `start` about `axis` every step round the circle, with `start`'s
     /// score, skipping those near a pose already kept, until there are `cap`.
     fn around(&self, start: &Scored, axis: &SymmetryAxis, kept: &mut Vec<Scored>, cap: usize) {
@@ -130,6 +145,43 @@ impl Walk<'_> {
                 kept.push((candidate, start.1));
             }
         }
+    }
+
+    /// Adds the rotations around `start` that the view does not tell apart from it: a flood
+    /// fill from `start` over the turns by a step about the model's axes through its centroid
+    /// (the centroid kept in place), each kept with its circles about the model's axes of
+    /// symmetry when [`Walk::shifted`] accepts it, until there are `cap`.
+    /// On clean depth it stops at the first ring; on real frames, whose noise leaves poses
+    /// 10° apart equally good, it fills that ball. Whether it added a pose.
+    fn nearby(&self, start: &Scored, kept: &mut Vec<Scored>, cap: usize) -> bool {
+        let centre = self
+            .model
+            .cloud
+            .cloud
+            .centroid()
+            .unwrap_or_else(Point3::origin);
+        let before = kept.len();
+        let mut queue = vec![start.0];
+        while let Some(from) = queue.pop() {
+            for axis in [Vector3::x_axis(), Vector3::y_axis(), Vector3::z_axis()] {
+                for sign in [1.0, -1.0] {
+                    if kept.len() >= cap {
+                        return true;
+                    }
+                    let turn = UnitQuaternion::from_axis_angle(&axis, sign * self.step);
+                    let candidate = from * Isometry3::rotation_wrt_point(turn, centre.cast());
+                    if self.near_kept(&candidate, kept) {
+                        continue;
+                    }
+                    if let Some(found) = self.shifted(&candidate) {
+                        kept.push(found);
+                        self.around_all(&found, kept, cap);
+                        queue.push(found.0);
+                    }
+                }
+            }
+        }
+        kept.len() > before
     }
 
     /// Whether a pose already kept is within half a step of `candidate`'s rotation.
@@ -158,21 +210,30 @@ impl Walk<'_> {
         }
     }
 
-    /// `candidate` with its score when it is accepted, else its refinement when that is
-    /// accepted and stays within half a step of it; `None` otherwise.
+    /// `candidate` with its shift refined ([`refine_shift`]) and its score, when it is accepted.
+    fn shifted(&self, candidate: &Isometry3<f64>) -> Option<Scored> {
+        let pose = refine_shift(self.model, self.view, candidate)?;
+        self.accepted(&pose)
+    }
+
+    /// `pose` with its score, when it is accepted.
+    fn accepted(&self, pose: &Isometry3<f64>) -> Option<Scored> {
+        compare_in(self.model, self.observation, pose, self.options)
+            .filter(|c| self.acceptance.accepts(c))
+            .map(|c| (*pose, f64::from(c.score)))
+    }
+
+    /// [`Walk::shifted`], else `candidate`'s refinement in the directions the points constrain
+    /// when that is accepted and stays within half a step of it (a walk that strays off the
+    /// arc comes back); `None` otherwise.
     fn accept(&self, candidate: &Isometry3<f64>) -> Option<Scored> {
-        let compare = |pose: &Isometry3<f64>| {
-            compare_in(self.model, self.observation, pose, self.options)
-                .filter(|c| self.acceptance.accepts(c))
-                .map(|c| (*pose, f64::from(c.score)))
-        };
-        if let Some(found) = compare(candidate) {
+        if let Some(found) = self.shifted(candidate) {
             return Some(found);
         }
         let refined = refine_symmetric_start(self.model, self.view, candidate)?;
         if geodesic_distance(&refined.rotation, &candidate.rotation) > 0.5 * self.step {
             return None;
         }
-        compare(&refined)
+        self.accepted(&refined)
     }
 }

@@ -15,9 +15,9 @@ use registration::{
 };
 use so3_grid::geodesic_distance;
 
-use crate::arc::along_free_turns;
+use crate::arc::{SAME_AXIS, along_free_turns};
 use crate::score::{Acceptance, Comparison, Observation, compare_pose};
-use crate::symmetries::spread;
+use crate::symmetries::{apart_from_axes, spread};
 use crate::{LabelOptions, ObjectModel, Strategy};
 use bop_dataset::PseudoLabel;
 
@@ -321,7 +321,7 @@ pub fn refine_pose(
     view: &PreparedCloud,
     pose: &Isometry3<f64>,
 ) -> Option<Isometry3<f64>> {
-    refine(model, view, pose, 0.0)
+    refine(model, view, pose, 0.0, false)
 }
 
 /// [`refine_pose`] of a refined pose composed with a symmetry of the model, leaving out of each
@@ -333,20 +333,34 @@ pub(crate) fn refine_symmetric_start(
     view: &PreparedCloud,
     pose: &Isometry3<f64>,
 ) -> Option<Isometry3<f64>> {
-    refine(model, view, pose, MIN_EIGEN_RATIO)
+    refine(model, view, pose, MIN_EIGEN_RATIO, false)
 }
 
-/// [`refine_pose`] with ICP's `min_eigen_ratio`.
+/// `pose` (model→camera) with its rotation kept and its shift refined as [`refine_pose`]
+/// refines a pose (the shift along a flat face, which the points do not fix, left as it is):
+/// how a rotation is placed when rotations are tried one by one, by the reference labeller's
+/// grid and the walks along free turns.
+pub(crate) fn refine_shift(
+    model: &ObjectModel,
+    view: &PreparedCloud,
+    pose: &Isometry3<f64>,
+) -> Option<Isometry3<f64>> {
+    refine(model, view, pose, MIN_EIGEN_RATIO, true)
+}
+
+/// [`refine_pose`] with ICP's `min_eigen_ratio` and `shift_only`.
 fn refine(
     model: &ObjectModel,
     view: &PreparedCloud,
     pose: &Isometry3<f64>,
     min_eigen_ratio: f64,
+    shift_only: bool,
 ) -> Option<Isometry3<f64>> {
     let options = IcpOptions {
         max_correspondence_distance: 1.5 * model.voxel,
         max_normal_angle: Some(MAX_NORMAL_ANGLE),
         min_eigen_ratio,
+        shift_only,
         ..IcpOptions::default()
     };
     refine_icp(
@@ -589,11 +603,17 @@ fn pose_set(
                 .pose;
             if candidates.iter().any(|c| c.score() <= threshold) {
                 // Twice as many starts as labels, spread over the symmetries: enough for the
-                // labels to be spread too after failures and merging.
-                let rotations: Vec<_> = model.symmetries.iter().map(|s| s.rotation).collect();
+                // labels to be spread too after failures and merging. A turn about an axis of
+                // symmetry renders as the best does: the circles of the labels hold it.
+                let symmetries = apart_from_axes(
+                    &model.symmetries,
+                    &model.symmetry_axes,
+                    SAME_AXIS * model.diameter,
+                );
+                let rotations: Vec<_> = symmetries.iter().map(|s| s.rotation).collect();
                 let starts = spread(&rotations, 2 * options.labels);
                 candidates.extend(starts[1..].iter().filter_map(|&i| {
-                    let pose = refine_symmetric_start(model, view, &(best * model.symmetries[i]))?;
+                    let pose = refine_symmetric_start(model, view, &(best * symmetries[i]))?;
                     Some(Candidate::compared(model, observation, pose, options))
                 }));
             }
@@ -617,7 +637,7 @@ fn pose_set(
     candidates.sort_by(|a, b| a.score().total_cmp(&b.score()));
     let best_pose = candidates.first().map_or(Isometry3::identity(), |b| b.pose);
     let best_score = candidates.first().map_or(f64::INFINITY, Candidate::score);
-    candidates.retain(|c| c.score() <= label_bar(options, best_score));
+    candidates.retain(|c| c.score() <= options.accepted_score(best_score));
     if candidates.is_empty() {
         return Err(LabelFailure::NoPoseAccepted {
             best: best_score,
@@ -635,7 +655,7 @@ fn pose_set(
         .map(|i| (merged[i].pose, merged[i].score()))
         .collect();
     let acceptance = Acceptance {
-        score: label_bar(options, best_score),
+        score: options.accepted_score(best_score),
         best: best_comparison,
     };
     Ok(
@@ -645,20 +665,6 @@ fn pose_set(
             .collect(),
     )
 }
-
-/// The highest score of a label where the best pose scores `best`: what the acceptance rule
-/// accepts ([`LabelOptions::accepted_score`]) less [`SCORE_DOUBT`], but never under the
-/// best's own score when the rule accepts that.
-pub(crate) fn label_bar(options: &LabelOptions, best: f64) -> f64 {
-    let accepted = options.accepted_score(best);
-    (accepted - SCORE_DOUBT).max(best.min(accepted))
-}
-
-/// Poses this close under the acceptance rule's bar are no labels: which side of the bar they
-/// fall depends on the refinement that reached them. On the mugs of the Kinect set of
-/// docs/results.md, the same poses scored 0.002 under the bar through the labeller's
-/// refinements and over it through the reference labeller's.
-const SCORE_DOUBT: f64 = 0.005;
 
 /// The poses `found` (model→camera, with its score) is most often mistaken for: `found`
 /// composed with each of the model's principal turns, registered again and scored. Screened

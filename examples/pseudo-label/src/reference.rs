@@ -10,16 +10,23 @@
 //!    ([`crate::Comparison::told_apart_from`]).
 //! 2. **Flood fill**: from the cells of a fine grid (level 4: 294,912 cells, about 3.75° apart)
 //!    that hold an accepted pose, every cell is tried: its centre rotation, with the translation
-//!    that keeps the object's centre where the neighbour it was reached from put it, refined by
-//!    ICP in the directions the points constrain (a turn the view cannot tell is left where it
-//!    is) and scored. A cell whose refined pose is accepted and stays within one cell spacing of
-//!    its centre belongs to A, and its six neighbours (a spacing's turn either way about each
-//!    model axis) are tried next. Every connected region of accepted poses that the search
-//!    reached is so sampled whole, at the fine grid's spacing.
+//!    that keeps the object's centre where the neighbour it was reached from put it, the
+//!    translation refined by ICP (the rotation stays the cell's) and scored; where that is
+//!    refused, the start is refined by ICP in the directions the points constrain (a turn the
+//!    view cannot tell is left where it is) and scored, and counts if it stays within a cell
+//!    spacing of the centre. A cell whose pose is accepted belongs to A, and its six neighbours
+//!    (a spacing's turn either way about each model axis) are tried next. Every connected region
+//!    of accepted rotations that the search reached is so sampled whole, at the fine grid's
+//!    spacing.
 //!
-//! A holds one refined pose per accepted cell: a discrete symmetry is the few cells around its
-//! pose, a continuous ambiguity (a can's axis, a mug's turns with the handle hidden) a tube of
-//! cells along it. Cells are tried in waves, in parallel, and taken in cell order, so that A does
+//! A holds the accepted poses of the search (ICP's optimum, which a cell's centre may miss by
+//! enough to be refused where the score rises steeply) and one pose per accepted cell: a
+//! discrete symmetry is the cells around its pose that the depth cannot tell from it (a few on
+//! clean renders, a ball 10° across on noisy real frames), a continuous ambiguity (a can's
+//! axis, a mug's turns with the handle hidden) a tube of cells along it. The rotation is kept
+//! first: a cell where a mug's handle begins to show is accepted as it is, which ICP would turn
+//! back towards the truth. The refinement is the fallback for a centre a little off an arc that
+//! clean depth tells apart from it (a mug tilted by 2°). Cells are tried in waves, in parallel, and taken in cell order, so that A does
 //! not depend on the number of threads.
 use std::collections::HashSet;
 
@@ -28,7 +35,8 @@ use rayon::prelude::*;
 use so3_grid::{Grid, geodesic_distance};
 
 use crate::instance::{
-    LabelFailure, align_from, compare_in, placed, prepare_view, refine_symmetric_start,
+    LabelFailure, align_from, compare_in, placed, prepare_view, refine_shift,
+    refine_symmetric_start,
 };
 use crate::score::{Acceptance, Comparison};
 use crate::{LabelError, LabelOptions, ObjectModel, Observation};
@@ -94,7 +102,7 @@ impl ReferenceOptions {
 /// The ambiguity set A of one instance.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ReferenceSet {
-    /// One refined pose per accepted cell, best score first.
+    /// The accepted poses of the search and one pose per accepted cell, best score first.
     pub poses: Vec<PseudoLabel>,
     /// Global alignments run (the search grid's size).
     pub starts: usize,
@@ -146,11 +154,19 @@ pub fn reference_set(
         score: options.accepted_score(best_score),
         best,
     };
-    let seeds: Vec<Isometry3<f64>> = found
-        .into_iter()
-        .filter(|(_, c)| c.as_ref().is_some_and(|c| acceptance.accepts(c)))
-        .map(|(pose, _)| pose)
-        .collect();
+    // The accepted poses of the search, no two within half a spacing of each other.
+    let mut seeds: Vec<Scored> = Vec::new();
+    for (pose, comparison) in found {
+        let Some(comparison) = comparison.filter(|c| acceptance.accepts(c)) else {
+            continue;
+        };
+        if seeds
+            .iter()
+            .all(|s| geodesic_distance(&s.0.rotation, &pose.rotation) > 0.5 * reference.spacing())
+        {
+            seeds.push((pose, f64::from(comparison.score)));
+        }
+    }
     let grid = Grid::new(reference.level).map_err(grid_failure)?;
     let model_centre = model.cloud.cloud.centroid().unwrap_or_else(Point3::origin);
     let fill = Flood {
@@ -164,8 +180,9 @@ pub fn reference_set(
     };
     let (accepted, cells, truncated) = fill.run(&seeds, &acceptance, reference.max_cells)?;
     let best_score = accepted.iter().fold(best_score, |b, c| b.min(c.1));
-    let mut poses: Vec<PseudoLabel> = accepted
+    let mut poses: Vec<PseudoLabel> = seeds
         .into_iter()
+        .chain(accepted)
         .filter(|c| c.1 <= options.accepted_score(best_score))
         .map(|(pose, score)| PseudoLabel { pose, score })
         .collect();
@@ -195,11 +212,11 @@ struct Flood<'a> {
 }
 
 impl Flood<'_> {
-    /// The poses `acceptance` accepts of the cells connected to the cells of `seeds`, the
-    /// cells tried, and whether `max_cells` cut the fill short.
+    /// The poses `acceptance` accepts of the cells connected to the cells of the poses of
+    /// `seeds`, the cells tried, and whether `max_cells` cut the fill short.
     fn run(
         &self,
-        seeds: &[Isometry3<f64>],
+        seeds: &[Scored],
         acceptance: &Acceptance,
         max_cells: usize,
     ) -> Result<(Vec<Scored>, usize, bool), LabelFailure> {
@@ -207,7 +224,7 @@ impl Flood<'_> {
             |rotation: &UnitQuaternion<f64>| self.grid.locate(rotation).map_err(grid_failure);
         let mut visited: HashSet<u64> = HashSet::new();
         let mut queue: Vec<(u64, Isometry3<f64>)> = Vec::new();
-        for seed in seeds {
+        for (seed, _) in seeds {
             let cell = locate(&seed.rotation)?;
             if visited.insert(cell) {
                 queue.push((cell, *seed));
@@ -242,8 +259,9 @@ impl Flood<'_> {
     }
 
     /// Cell `cell` reached from the accepted pose `from`: its centre rotation with the object's
-    /// centre where `from` puts it, refined and scored; `None` unless `acceptance` accepts it
-    /// and it stays within a spacing of the centre.
+    /// centre where `from` puts it, the shift refined and scored; when `acceptance` refuses
+    /// that, the same start refined in the directions the points constrain, if it stays within
+    /// a spacing of the centre. `None` unless one of the two is accepted.
     fn try_cell(
         &self,
         cell: u64,
@@ -256,14 +274,20 @@ impl Flood<'_> {
             Translation3::from(centre.coords - rotation * self.model_centre),
             rotation,
         );
+        let accepted = |pose: Isometry3<f64>| {
+            let comparison = compare_in(self.model, self.observation, &pose, self.options)?;
+            acceptance
+                .accepts(&comparison)
+                .then_some((pose, f64::from(comparison.score)))
+        };
+        if let Some(found) = refine_shift(self.model, self.view, &start).and_then(accepted) {
+            return Some(found);
+        }
         let pose = refine_symmetric_start(self.model, self.view, &start)?;
         if geodesic_distance(&pose.rotation, &rotation) > self.spacing {
             return None;
         }
-        let comparison = compare_in(self.model, self.observation, &pose, self.options)?;
-        acceptance
-            .accepts(&comparison)
-            .then_some((pose, f64::from(comparison.score)))
+        accepted(pose)
     }
 }
 
