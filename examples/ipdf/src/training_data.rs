@@ -35,20 +35,30 @@ pub enum LabelSource {
     Analytical,
     /// The pseudo labels of `scene_pseudo_gt.json` (no ground truth used).
     Pseudo,
+    /// The reference sets A of `scene_reference_gt.json` (`ipdf label --reference`): every pose
+    /// the labeller's acceptance rule accepts, found by brute force. The yardstick of a model
+    /// trained on pseudo labels.
+    Reference,
 }
 
 impl LabelSource {
-    /// `single`, `analytical` or `pseudo`.
+    /// `single`, `analytical`, `pseudo` or `reference`.
     pub const fn name(self) -> &'static str {
         match self {
             Self::Single => "single",
             Self::Analytical => "analytical",
             Self::Pseudo => "pseudo",
+            Self::Reference => "reference",
         }
     }
 
     /// Every source.
-    pub const ALL: [Self; 3] = [Self::Single, Self::Analytical, Self::Pseudo];
+    pub const ALL: [Self; 4] = [
+        Self::Single,
+        Self::Analytical,
+        Self::Pseudo,
+        Self::Reference,
+    ];
 }
 
 /// What a crop is cut around.
@@ -281,7 +291,22 @@ fn scene_instances(
         .map(|p| read_scene_gt_info(&p))
         .transpose()?;
     let pseudo = match options.labels {
-        LabelSource::Pseudo => Some(read_scene_pseudo_gt(dataset, &scene, &options.split)?),
+        LabelSource::Pseudo => Some(read_scene_label_sets(
+            &scene.pseudo_gt_path(),
+            &format!(
+                "ipdf label --dataset {} --split {}",
+                dataset.root.display(),
+                options.split
+            ),
+        )?),
+        LabelSource::Reference => Some(read_scene_label_sets(
+            &scene.reference_gt_path(),
+            &format!(
+                "ipdf label --dataset {} --split {} --reference",
+                dataset.root.display(),
+                options.split
+            ),
+        )?),
         _ => None,
     };
     let cameras = read_scene_camera(&scene.camera_path())?;
@@ -360,12 +385,12 @@ fn mask_objects(
 type LabelSets = (Vec<UnitQuaternion<f64>>, Vec<Vector3<f64>>);
 
 /// An instance's rotation labels and translation labels (mm) from `source`: its ground truth
-/// (`truth`), turned by the object's symmetries (`analytical`), or its pseudo labels; `None`
-/// when the source has none for it.
+/// (`truth`), turned by the object's symmetries (`analytical`), or its pseudo labels or
+/// reference set (`sets`); `None` when the source has none for it.
 fn instance_labels(
     source: LabelSource,
     truth: Option<&GtInstance>,
-    pseudo: Option<&PseudoInstance>,
+    sets: Option<&PseudoInstance>,
     analytical: &[UnitQuaternion<f64>],
 ) -> Option<LabelSets> {
     match source {
@@ -376,7 +401,7 @@ fn instance_labels(
                 vec![millimetres(&t.pose)],
             )
         }),
-        LabelSource::Pseudo => pseudo.map(|p| {
+        LabelSource::Pseudo | LabelSource::Reference => sets.map(|p| {
             let rotations = p.labels.iter().map(|l| l.pose.rotation).collect();
             let translations = p.labels.iter().map(|l| millimetres(&l.pose)).collect();
             (rotations, translations)
@@ -397,21 +422,17 @@ fn turned(
     symmetries.iter().map(|s| rotation * s).collect()
 }
 
-/// The scene's `scene_pseudo_gt.json`; a missing one is an error saying how to make it.
-fn read_scene_pseudo_gt(
-    dataset: &BopDataset,
-    scene: &SceneDir,
-    split: &str,
+/// The scene's pose sets at `path` (`scene_pseudo_gt.json`, `scene_reference_gt.json`); a
+/// missing file is an error saying to run `command` first.
+fn read_scene_label_sets(
+    path: &Path,
+    command: &str,
 ) -> Result<BTreeMap<u32, Vec<PseudoInstance>>, FileError> {
-    let path = scene.pseudo_gt_path();
     if !path.exists() {
-        let reason = format!(
-            "missing: make the pseudo labels first with `ipdf label --dataset {} --split {split}`",
-            dataset.root.display(),
-        );
-        return Err(FileError::new(&path, "file", reason));
+        let reason = format!("missing: make it first with `{command}`");
+        return Err(FileError::new(path, "file", reason));
     }
-    read_pseudo_gt(&path)
+    read_pseudo_gt(path)
 }
 
 /// The crops of `pending`, in parallel; an instance whose visible mask or box is empty (fully

@@ -25,6 +25,67 @@ fn finite(value: &Value) -> f64 {
     v
 }
 
+/// A `scene_reference_gt.json` beside each `scene_gt.json` of the validation split whose set
+/// for each instance is its ground-truth pose composed with the identity and each discrete
+/// symmetry of `models_info.json` (row-major 4 × 4, millimetres).
+fn write_symmetric_sets(data: &Path) {
+    let info = read_json(&data.join("models/models_info.json"));
+    for scene in std::fs::read_dir(data.join("val")).unwrap() {
+        let scene = scene.unwrap().path();
+        if !scene.is_dir() {
+            continue;
+        }
+        let gt = read_json(&scene.join("scene_gt.json"));
+        let mut sets = serde_json::Map::new();
+        for (im, instances) in gt.as_object().unwrap() {
+            let instances: Vec<Value> = instances
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|instance| {
+                    let obj_id = &instance["obj_id"];
+                    let r: Vec<f64> = instance["cam_R_m2c"]
+                        .as_array()
+                        .unwrap()
+                        .iter()
+                        .map(finite)
+                        .collect();
+                    let mut turns = vec![vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]];
+                    if let Some(discrete) =
+                        info[obj_id.to_string()]["symmetries_discrete"].as_array()
+                    {
+                        for matrix in discrete {
+                            let m: Vec<f64> =
+                                matrix.as_array().unwrap().iter().map(finite).collect();
+                            turns.push(vec![m[0], m[1], m[2], m[4], m[5], m[6], m[8], m[9], m[10]]);
+                        }
+                    }
+                    let labels: Vec<Value> = turns
+                        .iter()
+                        .map(|t| {
+                            let product: Vec<f64> = (0..9)
+                                .map(|k| (0..3).map(|j| r[k / 3 * 3 + j] * t[j * 3 + k % 3]).sum())
+                                .collect();
+                            serde_json::json!({
+                                "cam_R_m2c": product,
+                                "cam_t_m2c": instance["cam_t_m2c"],
+                                "score": 0.8,
+                            })
+                        })
+                        .collect();
+                    serde_json::json!({"obj_id": obj_id, "labels": labels})
+                })
+                .collect();
+            sets.insert(im.clone(), Value::Array(instances));
+        }
+        std::fs::write(
+            scene.join("scene_reference_gt.json"),
+            serde_json::to_vec(&Value::Object(sets)).unwrap(),
+        )
+        .unwrap();
+    }
+}
+
 #[test]
 fn pose_runs_train_score_and_predict_translations() {
     let dir = tempfile::tempdir().unwrap();
@@ -71,6 +132,46 @@ fn pose_runs_train_score_and_predict_translations() {
     }
 
     let scores = ipdf_json(&["eval", "--checkpoint", s(&run), "--level", "2"]);
+    assert_eq!(scores["truth"], "gt");
+    // Scored against reference sets, which `ipdf label --reference` must have made first; sets
+    // that hold the ground truth turned by each symmetry of models_info.json score as the
+    // ground truth does.
+    let reference = [
+        "eval",
+        "--checkpoint",
+        s(&run),
+        "--level",
+        "2",
+        "--truth",
+        "reference",
+    ];
+    assert_fails(&reference, "--reference");
+    let untrained = dir.path().join("reference_run");
+    assert_fails(
+        &[
+            "train",
+            "--dataset",
+            s(&data),
+            "--object",
+            "box",
+            "--labels",
+            "reference",
+            "--out",
+            s(&untrained),
+        ],
+        "--split train --reference",
+    );
+    write_symmetric_sets(&data);
+    let against = ipdf_json(&reference);
+    assert_eq!(against["truth"], "reference");
+    assert_eq!(against["images"], scores["images"]);
+    for key in ["llh", "maad_deg", "recall_maad_deg"] {
+        let (a, b) = (finite(&against[key]), finite(&scores[key]));
+        assert!(
+            (a - b).abs() < 1e-6 * (1.0 + b.abs()),
+            "{key}: {a} against {b}"
+        );
+    }
     let translation = &scores["translation"];
     assert_eq!(translation["images"], 3);
     // Format checks (a model of a few steps learns too little for an accuracy bound): an error

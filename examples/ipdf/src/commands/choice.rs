@@ -41,6 +41,7 @@ named!(
     ipdf::training_data::LabelSource,
     ipdf::training_data::CropSource,
     ipdf::training::Target,
+    ipdf::eval::Truth,
     ipdf::npy::RotationFormat,
     ipdf::pipeline::Preset,
 );

@@ -9,7 +9,9 @@ use anyhow::{Result, bail};
 use bop_dataset::{write_atomically, write_json};
 use ipdf::eval::instances::markdown;
 use ipdf::eval::translation::is_translation_run;
-use ipdf::eval::{EvalRequest, MIN_VISIBLE_FRACTION, evaluate_run, evaluate_translation_run};
+use ipdf::eval::{
+    EvalRequest, MIN_VISIBLE_FRACTION, Truth, evaluate_run, evaluate_translation_run,
+};
 use ipdf::progress::bar;
 use ipdf::training_data::CropSource;
 
@@ -52,6 +54,11 @@ pub struct EvalArgs {
     /// BOP scores from 0.1).
     #[arg(long, default_value_t = MIN_VISIBLE_FRACTION)]
     pub min_visib: f64,
+    /// What each instance's rotations are scored against: its ground truth with the
+    /// symmetries of models_info.json, or its reference set A of `ipdf label --reference`
+    /// (every pose the view cannot tell apart; instances without one are left out).
+    #[arg(long, default_value = "gt", value_parser = choice::<Truth>())]
+    pub truth: Truth,
     /// Write the scores here (JSON), each instance's as a Markdown table beside it (`.md`).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -70,6 +77,7 @@ pub fn run(args: &EvalArgs) -> Result<serde_json::Value> {
         crop: args.crop,
         min_visible_fraction: args.min_visib,
         per_instance: true,
+        truth: args.truth,
         ..EvalRequest::new(args.checkpoint.clone(), &args.split, args.level)
     };
     let progress = bar(0, "images");

@@ -27,8 +27,10 @@ pub struct TrainArgs {
     /// BOP dataset folder.
     #[arg(long)]
     pub dataset: PathBuf,
-    /// Label sets: the GT pose alone, the GT pose with the symmetries of models_info.json, or
-    /// the pseudo labels of `ipdf label`.
+    /// Label sets: the GT pose alone, the GT pose with the symmetries of models_info.json, the
+    /// pseudo labels of `ipdf label`, or the reference sets of `ipdf label --reference` (every
+    /// pose the labels' acceptance rule accepts: the yardstick of a model trained on pseudo
+    /// labels).
     #[arg(long, value_parser = choice::<LabelSource>())]
     pub labels: LabelSource,
     /// What the model learns: the object's rotation, its translation (camera frame, mm), or

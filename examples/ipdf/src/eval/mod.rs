@@ -16,13 +16,38 @@ use serde::{Deserialize, Serialize};
 
 use crate::Error;
 use crate::run_info::RunInfo;
-use crate::training_data::{CropSource, ExampleOptions, Examples, load_examples};
+use crate::training_data::{CropSource, ExampleOptions, Examples, LabelSource, load_examples};
 use instances::{Accuracy, InstanceScore, PoseParts, score_instances};
 use rotation::evaluate_rotations;
 use translation::{
     ObjectModel, PoseEval, TranslationEval, evaluate_pose, evaluate_translation,
     pose_translation_model,
 };
+
+/// What each instance's rotations are scored against.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Truth {
+    /// The ground truth (`scene_gt.json`) with the symmetries of `models_info.json`.
+    #[default]
+    GroundTruth,
+    /// The instance's reference set A (`scene_reference_gt.json` of `ipdf label --reference`):
+    /// every pose the view cannot tell apart, a mug's arc where its handle is hidden. Instances
+    /// without one are left out.
+    Reference,
+}
+
+impl Truth {
+    /// `gt` or `reference`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::GroundTruth => "gt",
+            Self::Reference => "reference",
+        }
+    }
+
+    /// Every choice.
+    pub const ALL: [Self; 2] = [Self::GroundTruth, Self::Reference];
+}
 
 /// Which trained run to score, on what and on which grid.
 #[derive(Debug, Clone, PartialEq)]
@@ -50,6 +75,8 @@ pub struct EvalRequest {
     pub min_visible_fraction: f64,
     /// Each instance's scores too (the most likely rotation of every crop: a little slower).
     pub per_instance: bool,
+    /// What the rotations are scored against.
+    pub truth: Truth,
 }
 
 impl EvalRequest {
@@ -68,6 +95,7 @@ impl EvalRequest {
             crop: None,
             min_visible_fraction: MIN_VISIBLE_FRACTION,
             per_instance: false,
+            truth: Truth::GroundTruth,
         }
     }
 
@@ -87,7 +115,8 @@ impl EvalRequest {
         Ok(RefineOptions::dense(self.level))
     }
 
-    /// The examples the request scores, with crops of `size` pixels, for the run of `info`.
+    /// The examples the request scores, with crops of `size` pixels, for the run of `info`;
+    /// with [`Truth::Reference`], their truth sets are the reference sets.
     fn examples(
         &self,
         dataset: &BopDataset,
@@ -98,13 +127,28 @@ impl EvalRequest {
             CropSource::Box => CropSource::Box,
             _ => CropSource::Auto,
         });
+        let labels = match self.truth {
+            Truth::GroundTruth => LabelSource::Single,
+            Truth::Reference => LabelSource::Reference,
+        };
         let options = ExampleOptions {
             min_visible_fraction: self.min_visible_fraction,
             crop,
+            labels,
             ..ExampleOptions::evaluation(&self.split, info.obj_id, size)
         };
-        load_examples(dataset, &options)
+        let mut examples = load_examples(dataset, &options)?;
+        if self.truth == Truth::Reference {
+            examples.truth_sets = Some(examples.label_sets.clone());
+        }
+        Ok(examples)
     }
+}
+
+/// [`Truth::GroundTruth`]'s name: what results written before [`EvalResult::truth`] were
+/// scored against.
+fn ground_truth_name() -> String {
+    Truth::GroundTruth.name().into()
 }
 
 /// BOP's least visible fraction of an instance scored.
@@ -121,6 +165,9 @@ pub struct EvalResult {
     pub labels: String,
     /// The split scored.
     pub split: String,
+    /// What the rotations were scored against: `gt` or `reference` ([`Truth`]).
+    #[serde(default = "ground_truth_name")]
+    pub truth: String,
     /// The level of the evaluation grid.
     pub level: u8,
     /// `hierarchical` or `dense`.
@@ -129,7 +176,8 @@ pub struct EvalResult {
     pub queries_per_image: usize,
     /// Crops scored.
     pub images: usize,
-    /// Mean log-likelihood of the ground-truth sets.
+    /// Mean log-likelihood of the ground-truth sets (the reference sets with `truth`
+    /// `reference`).
     pub llh: f64,
     /// Mean absolute angular deviation (degrees).
     pub maad_deg: f64,
@@ -260,6 +308,7 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
         obj_id: info.obj_id,
         labels: info.labels,
         split: request.split.clone(),
+        truth: request.truth.name().into(),
         level: request.level,
         evaluation: if request.dense {
             "dense"

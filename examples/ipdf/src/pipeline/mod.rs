@@ -255,7 +255,11 @@ fn model_runs(out: &Path, plan: &Plan) -> Vec<ModelRun> {
     let mut runs = Vec::new();
     for object in OBJECTS {
         for &occlusion in &plan.occlusion {
-            for labels in LabelSource::ALL {
+            for labels in [
+                LabelSource::Single,
+                LabelSource::Analytical,
+                LabelSource::Pseudo,
+            ] {
                 runs.push((object, labels, occlusion, plan.encoder));
             }
         }
