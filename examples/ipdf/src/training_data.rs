@@ -290,25 +290,23 @@ fn scene_instances(
     let visible = optional(scene.gt_info_path())
         .map(|p| read_scene_gt_info(&p))
         .transpose()?;
-    let pseudo = match options.labels {
-        LabelSource::Pseudo => Some(read_scene_label_sets(
-            &scene.pseudo_gt_path(),
-            &format!(
-                "ipdf label --dataset {} --split {}",
-                dataset.root.display(),
-                options.split
-            ),
-        )?),
-        LabelSource::Reference => Some(read_scene_label_sets(
-            &scene.reference_gt_path(),
-            &format!(
-                "ipdf label --dataset {} --split {} --reference",
-                dataset.root.display(),
-                options.split
-            ),
-        )?),
-        _ => None,
+    // The pose sets of `ipdf label` (with `--reference`, the reference sets A), where they are
+    // the labels.
+    let sets = match options.labels {
+        LabelSource::Pseudo => Some((scene.pseudo_gt_path(), "")),
+        LabelSource::Reference => Some((scene.reference_gt_path(), " --reference")),
+        LabelSource::Single | LabelSource::Analytical => None,
     };
+    let pseudo = sets
+        .map(|(path, flag)| {
+            let command = format!(
+                "ipdf label --dataset {} --split {}{flag}",
+                dataset.root.display(),
+                options.split
+            );
+            read_scene_label_sets(&path, &command)
+        })
+        .transpose()?;
     let cameras = read_scene_camera(&scene.camera_path())?;
     let object_ids = mask_objects(&scene, gt.as_ref(), pseudo.as_ref(), options.labels)?;
     // The symmetry rotations, once per scene: a can's 400 take 80,000 comparisons to build.
