@@ -463,6 +463,25 @@ fn trial(
     }
 }
 
+/// ICP from every rotation of the level-0 SO(3) grid (72, about 60° apart) placed on the
+/// observed centroid ([`align_from`]), the best by score: the search of the last resort when no
+/// trial scores under `options.good_score` (a mug upside down whose handle FGR misplaces).
+fn grid_search(
+    model: &ObjectModel,
+    view: &PreparedCloud,
+    observation: &Observation,
+    options: &LabelOptions,
+) -> Option<Candidate> {
+    let grid = so3_grid::Grid::new(0).ok()?;
+    grid.rotations()
+        .par_iter()
+        .filter_map(|&rotation| {
+            let pose = align_from(model, view, &placed(model, view, rotation))?;
+            Some(Candidate::compared(model, observation, pose, options))
+        })
+        .min_by(|a, b| a.score().total_cmp(&b.score()))
+}
+
 /// The best of `count` trials (trial indices from `first`): stops early at a score below
 /// `options.good_score` (a wrong pose can score under the threshold, a right one scores about
 /// 0.8), and goes on up to `3 · count` trials while none is that good.
@@ -591,8 +610,14 @@ fn pose_set(
     let threshold = options.max_score;
     let mut candidates: Vec<Candidate> = match options.strategy {
         Strategy::Reseed => {
-            let trials =
+            let mut trials =
                 best_of_trials(model, view, observation, options, seed, 0, options.trials)?;
+            if trials.score() > options.good_score
+                && let Some(found) = grid_search(model, view, observation, options)
+                && found.score() < trials.score()
+            {
+                trials = found;
+            }
             let mistaken = mistaken_poses(model, view, observation, options, &trials);
             let mut candidates = vec![trials];
             candidates.extend(mistaken);
