@@ -3,22 +3,27 @@
 //! arc, and a few labels spread over the model's symmetries cover a tenth of it. From each
 //! label, the turns the observed points leave free ([`registration::weak_turns`]: a near-null
 //! direction of the point-to-plane normal equations at the label) are walked both ways in
-//! steps of `arc_step_deg`: each step is scored by render-and-compare and kept while the labels'
-//! acceptance rule accepts it (its score, and no part of the object misplaced); a step that
-//! fails is refined in the directions the points
-//! constrain and kept if it then passes without leaving its place. A walk ends where the view
-//! tells the pose apart (the handle comes into view), where it reaches a pose already kept (the
-//! circle closed), after a full turn, or when `arc_labels` poses have been added.
+//! steps of `arc_step_deg`: each step, its shift refined, is scored by render-and-compare and
+//! kept while the labels' acceptance rule accepts it (its score, and no part of the object
+//! misplaced); a step that fails is refined in the directions the points constrain and kept if
+//! it then passes without turning more than half a step (the rule of the reference labeller's
+//! cells). A walk ends where the view tells the pose apart (the handle comes into view), where it
+//! reaches a pose already kept (the circle closed), after a full turn, or when `arc_labels` poses
+//! have been added.
 //!
 //! A turn about one of the model's own axes of symmetry ([`ObjectModel::symmetry_axes`]: a
 //! can's, a bowl's) renders the same depth as the label it starts from: its poses, every
 //! `arc_step_deg` round the circle, are added with the label's score and no render, and the
 //! free turns along such an axis are not walked.
+//!
+//! Around the best label, the turns by a step about the model's axes are tried too; where the
+//! view accepts them (real frames, whose noise leaves poses 10° apart equally good), the ball
+//! they form around each label is filled.
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 use registration::{IcpOptions, PreparedCloud, WeakTurn, weak_turns};
 use so3_grid::geodesic_distance;
 
-use crate::instance::{MAX_NORMAL_ANGLE, compare_in, refine_shift, refine_symmetric_start};
+use crate::instance::{MAX_NORMAL_ANGLE, accepted_pose, place_rotation, refine_shift};
 use crate::score::Acceptance;
 use crate::symmetries::SymmetryAxis;
 use crate::{LabelOptions, ObjectModel, Observation};
@@ -213,27 +218,27 @@ impl Walk<'_> {
     /// `candidate` with its shift refined ([`refine_shift`]) and its score, when it is accepted.
     fn shifted(&self, candidate: &Isometry3<f64>) -> Option<Scored> {
         let pose = refine_shift(self.model, self.view, candidate)?;
-        self.accepted(&pose)
+        accepted_pose(
+            self.model,
+            self.observation,
+            self.options,
+            self.acceptance,
+            pose,
+        )
     }
 
-    /// `pose` with its score, when it is accepted.
-    fn accepted(&self, pose: &Isometry3<f64>) -> Option<Scored> {
-        compare_in(self.model, self.observation, pose, self.options)
-            .filter(|c| self.acceptance.accepts(c))
-            .map(|c| (*pose, f64::from(c.score)))
-    }
-
-    /// [`Walk::shifted`], else `candidate`'s refinement in the directions the points constrain
-    /// when that is accepted and stays within half a step of it (a walk that strays off the
-    /// arc comes back); `None` otherwise.
+    /// `candidate` placed as the reference labeller places a cell ([`place_rotation`]), the
+    /// fallback refinement turning it by at most half a step (a walk that strays off the arc
+    /// comes back).
     fn accept(&self, candidate: &Isometry3<f64>) -> Option<Scored> {
-        if let Some(found) = self.shifted(candidate) {
-            return Some(found);
-        }
-        let refined = refine_symmetric_start(self.model, self.view, candidate)?;
-        if geodesic_distance(&refined.rotation, &candidate.rotation) > 0.5 * self.step {
-            return None;
-        }
-        self.accepted(&refined)
+        place_rotation(
+            self.model,
+            self.view,
+            self.observation,
+            self.options,
+            self.acceptance,
+            candidate,
+            0.5 * self.step,
+        )
     }
 }

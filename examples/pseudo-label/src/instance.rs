@@ -132,9 +132,9 @@ pub struct InstanceLabels {
 /// A pose (model→camera) and how it explains the observation (`None`: nothing could be
 /// compared), kept so that telling it apart from the best pose needs no second render.
 #[derive(Debug, Clone)]
-struct Candidate {
-    pose: Isometry3<f64>,
-    comparison: Option<Comparison>,
+pub(crate) struct Candidate {
+    pub(crate) pose: Isometry3<f64>,
+    pub(crate) comparison: Option<Comparison>,
 }
 
 impl Candidate {
@@ -152,7 +152,7 @@ impl Candidate {
     }
 
     /// Its render-and-compare score, infinity when nothing could be compared.
-    fn score(&self) -> f64 {
+    pub(crate) fn score(&self) -> f64 {
         self.comparison
             .as_ref()
             .map_or(f64::INFINITY, |c| f64::from(c.score))
@@ -348,6 +348,45 @@ pub(crate) fn refine_shift(
     refine(model, view, pose, MIN_EIGEN_RATIO, true)
 }
 
+/// A rotation tried on its own (a cell of the reference labeller's grid, a step of a walk),
+/// placed and scored: `candidate` (model→camera) with its shift refined ([`refine_shift`]) when
+/// `acceptance` accepts that, else refined in the directions the points constrain
+/// ([`refine_symmetric_start`]) when that turns it by at most `max_turn` radians and is
+/// accepted. The pose with its score, or `None`.
+pub(crate) fn place_rotation(
+    model: &ObjectModel,
+    view: &PreparedCloud,
+    observation: &Observation,
+    options: &LabelOptions,
+    acceptance: &Acceptance,
+    candidate: &Isometry3<f64>,
+    max_turn: f64,
+) -> Option<(Isometry3<f64>, f64)> {
+    let accepted = |pose| accepted_pose(model, observation, options, acceptance, pose);
+    if let Some(found) = refine_shift(model, view, candidate).and_then(accepted) {
+        return Some(found);
+    }
+    let refined = refine_symmetric_start(model, view, candidate)?;
+    if geodesic_distance(&refined.rotation, &candidate.rotation) > max_turn {
+        return None;
+    }
+    accepted(refined)
+}
+
+/// `pose` with its score, when `acceptance` accepts its comparison with the observation.
+pub(crate) fn accepted_pose(
+    model: &ObjectModel,
+    observation: &Observation,
+    options: &LabelOptions,
+    acceptance: &Acceptance,
+    pose: Isometry3<f64>,
+) -> Option<(Isometry3<f64>, f64)> {
+    let comparison = compare_in(model, observation, &pose, options)?;
+    acceptance
+        .accepts(&comparison)
+        .then_some((pose, f64::from(comparison.score)))
+}
+
 /// [`refine_pose`] with ICP's `min_eigen_ratio` and `shift_only`.
 fn refine(
     model: &ObjectModel,
@@ -463,9 +502,28 @@ fn trial(
     }
 }
 
-/// ICP from every rotation of the level-0 SO(3) grid (72, about 60° apart) placed on the
-/// observed centroid ([`align_from`]), the best by score: the search of the last resort when no
-/// trial scores under `options.good_score` (a mug upside down whose handle FGR misplaces).
+/// ICP from every rotation of `grid` placed on the observed centroid ([`align_from`]), each
+/// pose found compared with the observation, in grid order: the search of the reference
+/// labeller, and the labeller's last resort.
+pub(crate) fn grid_alignments(
+    model: &ObjectModel,
+    view: &PreparedCloud,
+    observation: &Observation,
+    options: &LabelOptions,
+    grid: &so3_grid::Grid,
+) -> Vec<Candidate> {
+    grid.rotations()
+        .par_iter()
+        .filter_map(|&rotation| {
+            let pose = align_from(model, view, &placed(model, view, rotation))?;
+            Some(Candidate::compared(model, observation, pose, options))
+        })
+        .collect()
+}
+
+/// The best of [`grid_alignments`] on the level-0 grid (72 rotations, about 60° apart): the
+/// search of the last resort when no trial scores under `options.good_score` (a mug upside
+/// down whose handle FGR misplaces).
 fn grid_search(
     model: &ObjectModel,
     view: &PreparedCloud,
@@ -473,12 +531,8 @@ fn grid_search(
     options: &LabelOptions,
 ) -> Option<Candidate> {
     let grid = so3_grid::Grid::new(0).ok()?;
-    grid.rotations()
-        .par_iter()
-        .filter_map(|&rotation| {
-            let pose = align_from(model, view, &placed(model, view, rotation))?;
-            Some(Candidate::compared(model, observation, pose, options))
-        })
+    grid_alignments(model, view, observation, options, &grid)
+        .into_iter()
         .min_by(|a, b| a.score().total_cmp(&b.score()))
 }
 

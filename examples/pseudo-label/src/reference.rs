@@ -26,19 +26,16 @@
 //! axis, a mug's turns with the handle hidden) a tube of cells along it. The rotation is kept
 //! first: a cell where a mug's handle begins to show is accepted as it is, which ICP would turn
 //! back towards the truth. The refinement is the fallback for a centre a little off an arc that
-//! clean depth tells apart from it (a mug tilted by 2°). Cells are tried in waves, in parallel, and taken in cell order, so that A does
-//! not depend on the number of threads.
+//! clean depth tells apart from it (a mug tilted by 2°). Cells are tried in waves, in parallel,
+//! and taken in cell order, so that A does not depend on the number of threads.
 use std::collections::HashSet;
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 use so3_grid::{Grid, geodesic_distance};
 
-use crate::instance::{
-    LabelFailure, align_from, compare_in, placed, prepare_view, refine_shift,
-    refine_symmetric_start,
-};
-use crate::score::{Acceptance, Comparison};
+use crate::instance::{Candidate, LabelFailure, grid_alignments, place_rotation, prepare_view};
+use crate::score::Acceptance;
 use crate::{LabelError, LabelOptions, ObjectModel, Observation};
 use bop_dataset::PseudoLabel;
 
@@ -128,21 +125,13 @@ pub fn reference_set(
     let search = Grid::new(reference.search_level).map_err(grid_failure)?;
     // Each start's pose with its comparison (none where nothing can be compared), rendered
     // once: the score sets the bar, the pixels are what the best tells poses apart by.
-    let found: Vec<(Isometry3<f64>, Option<Comparison>)> = search
-        .rotations()
-        .par_iter()
-        .filter_map(|&rotation| {
-            let pose = align_from(model, &view, &placed(model, &view, rotation))?;
-            Some((pose, compare_in(model, observation, &pose, &options)))
-        })
-        .collect();
-    let score = |c: &Option<Comparison>| c.as_ref().map_or(f64::INFINITY, |c| f64::from(c.score));
-    let (best_pose, best) = found
+    let found = grid_alignments(model, &view, observation, &options, &search);
+    let best = found
         .iter()
-        .min_by(|a, b| score(&a.1).total_cmp(&score(&b.1)))
+        .min_by(|a, b| a.score().total_cmp(&b.score()))
         .cloned()
         .ok_or_else(|| LabelFailure::Registration("no start aligned".into()))?;
-    let best_score = score(&best);
+    let (best_pose, best_score, best) = (best.pose, best.score(), best.comparison);
     if best_score > options.max_score {
         return Err(LabelFailure::NoPoseAccepted {
             best: best_score,
@@ -156,7 +145,7 @@ pub fn reference_set(
     };
     // The accepted poses of the search, no two within half a spacing of each other.
     let mut seeds: Vec<Scored> = Vec::new();
-    for (pose, comparison) in found {
+    for Candidate { pose, comparison } in found {
         let Some(comparison) = comparison.filter(|c| acceptance.accepts(c)) else {
             continue;
         };
@@ -274,20 +263,15 @@ impl Flood<'_> {
             Translation3::from(centre.coords - rotation * self.model_centre),
             rotation,
         );
-        let accepted = |pose: Isometry3<f64>| {
-            let comparison = compare_in(self.model, self.observation, &pose, self.options)?;
-            acceptance
-                .accepts(&comparison)
-                .then_some((pose, f64::from(comparison.score)))
-        };
-        if let Some(found) = refine_shift(self.model, self.view, &start).and_then(accepted) {
-            return Some(found);
-        }
-        let pose = refine_symmetric_start(self.model, self.view, &start)?;
-        if geodesic_distance(&pose.rotation, &rotation) > self.spacing {
-            return None;
-        }
-        accepted(pose)
+        place_rotation(
+            self.model,
+            self.view,
+            self.observation,
+            self.options,
+            acceptance,
+            &start,
+            self.spacing,
+        )
     }
 }
 
