@@ -103,14 +103,20 @@ pub fn render_and_compare(
     compare_pose(scene, observation, pose, sensor, cap).map(|c| c.score)
 }
 
-/// How a pose explains an observation: its [`render_and_compare`] score, and which pixels of the
-/// observation's window it leaves unexplained (residual at the cap).
+/// How a pose explains an observation: its [`render_and_compare`] score, which pixels of the
+/// observation's window it leaves unexplained (residual at the cap), and the depth it renders
+/// there.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Comparison {
     /// The render-and-compare score.
     pub score: f32,
     /// Per pixel of the observation's window (row-major): the pose does not explain it.
     unexplained: Vec<bool>,
+    /// Per pixel of the window: the depth the pose renders (0 where it misses the object).
+    rendered: Vec<f32>,
+    /// Per pixel of the window: the residual at which a depth reads as unexplained (the cap
+    /// times the sensor's expected error at the rendered depth).
+    tolerance: Vec<f32>,
     /// The window's width.
     width: usize,
 }
@@ -125,24 +131,37 @@ const TELL_APART_PIXELS: f64 = 6.0;
 
 impl Comparison {
     /// Whether the observation tells this pose apart from `other` (a comparison of the same
-    /// observation): of the pixels one of them explains and the other does not, in patches
-    /// (each with its four neighbours: a silhouette edge shifted by a fraction of a pixel is a
-    /// thin line, not a part of the object), this pose loses significantly more than chance
-    /// allows (a sign test: more than 3 σ and 6 pixels beyond an even split). Poses the view
-    /// cannot tell apart split such pixels evenly, as the sensor's noise falls; a pose that
-    /// misplaces a small part of the object (a mug's handle) loses the part's pixels, which a
-    /// mean over the window hardly notices.
+    /// observation). Only where the two poses place a part of the object differently is there
+    /// evidence: the pixels where their renders differ by more than the tolerance (or one
+    /// renders the object and the other does not), in patches (each with its four neighbours,
+    /// so that a silhouette shifted by a fraction of a millimetre, a line one pixel wide,
+    /// counts nothing). Of those pixels, the ones one pose explains and the other does not are
+    /// counted, and this pose is told apart when it loses significantly more than chance allows
+    /// (a sign test: more than 3 σ and 6 pixels beyond an even split). Poses the view cannot
+    /// tell apart place every part alike up to a symmetry, or split such pixels evenly; a pose
+    /// that misplaces a small part of the object (a mug's handle) loses the part's pixels,
+    /// which a mean over the window hardly notices, even where the sensor leaves holes in a
+    /// thin part (the place the poses disagree on is a patch of the renders, not of the
+    /// readings).
     pub fn told_apart_from(&self, other: &Comparison) -> bool {
-        let (lost, won): (Vec<bool>, Vec<bool>) = self
-            .unexplained
-            .iter()
-            .zip(&other.unexplained)
-            .map(|(&mine, &theirs)| (mine && !theirs, theirs && !mine))
-            .unzip();
-        let (lost, won) = (
-            eroded_count(&lost, self.width),
-            eroded_count(&won, self.width),
-        );
+        let differ: Vec<bool> = (0..self.rendered.len().min(other.rendered.len()))
+            .map(|i| {
+                let (mine, theirs) = (self.rendered[i], other.rendered[i]);
+                match (mine > 0.0, theirs > 0.0) {
+                    (true, true) => {
+                        (mine - theirs).abs() > self.tolerance[i].min(other.tolerance[i])
+                    }
+                    (false, false) => false,
+                    _ => true,
+                }
+            })
+            .collect();
+        let part = eroded(&differ, self.width);
+        let (mut lost, mut won) = (0usize, 0usize);
+        for ((&at, &mine), &theirs) in part.iter().zip(&self.unexplained).zip(&other.unexplained) {
+            lost += usize::from(at && mine && !theirs);
+            won += usize::from(at && theirs && !mine);
+        }
         let excess = lost as f64 - won as f64;
         excess > TELL_APART_SIGMAS * ((lost + won) as f64).sqrt() + TELL_APART_PIXELS
     }
@@ -150,14 +169,23 @@ impl Comparison {
 
 /// The pixels of a row-major `mask` `width` pixels wide that are set with their four
 /// neighbours: a line one or two pixels wide (a silhouette edge shifted by a fraction of a
-/// millimetre) counts nothing, a patch (a part of the object) most of its pixels.
-fn eroded_count(mask: &[bool], width: usize) -> usize {
+/// millimetre) drops out, a patch (a part of the object) keeps its inside.
+fn eroded(mask: &[bool], width: usize) -> Vec<bool> {
     let height = mask.len() / width.max(1);
-    let at = |u: usize, v: usize| mask[v * width + u];
-    (1..height.saturating_sub(1))
-        .flat_map(|v| (1..width.saturating_sub(1)).map(move |u| (u, v)))
-        .filter(|&(u, v)| at(u, v) && at(u - 1, v) && at(u + 1, v) && at(u, v - 1) && at(u, v + 1))
-        .count()
+    (0..mask.len())
+        .map(|i| {
+            let (u, v) = (i % width, i / width);
+            u > 0
+                && v > 0
+                && u + 1 < width
+                && v + 1 < height
+                && mask[i]
+                && mask[i - 1]
+                && mask[i + 1]
+                && mask[i - width]
+                && mask[i + width]
+        })
+        .collect()
 }
 
 /// The acceptance rule of an instance's labels: a pose is accepted when it scores at most
@@ -228,9 +256,12 @@ pub fn compare_pose(
     {
         unexplained[i] = error.is_some_and(|e| e >= cap);
     }
+    let tolerance = sigma.iter().map(|&s| cap * s).collect();
     Some(Comparison {
         score,
         unexplained,
+        rendered: rendering.depth,
+        tolerance,
         width: window_width,
     })
 }
