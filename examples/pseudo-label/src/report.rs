@@ -3,7 +3,7 @@
 //! rotation of the ground-truth symmetry set, the paper's table "Evaluation of the pseudo
 //! ground-truth orientation labels") and the coverage of the symmetry set; where the reference
 //! sets A of `ipdf label --reference` were made, each instance's completeness and precision
-//! against A.
+//! against A, with or without a ground truth.
 use std::collections::BTreeMap;
 
 use std::io::Write;
@@ -191,16 +191,25 @@ impl LabelReport {
                 ),
                 _ => "–".into(),
             };
+            // Without a ground truth (instances scored against A alone), nothing to show.
+            let (label_maad, coverage) = if s.instances == 0 {
+                ("–".to_string(), "–".to_string())
+            } else {
+                (
+                    format!("{:.2}", s.label_maad_deg),
+                    format!("{:.1}%", 100.0 * s.coverage),
+                )
+            };
             text += &format!(
-                "| {} | {} | {} ({:.1}%) | {} | {} | {:.2} | {:.1}% | {} | {} | {} | {} | {} |\n",
+                "| {} | {} | {} ({:.1}%) | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
                 name,
                 s.instances,
                 s.labelled,
                 100.0 * s.labelled_fraction,
                 by_visibility,
                 s.labels,
-                s.label_maad_deg,
-                100.0 * s.coverage,
+                label_maad,
+                coverage,
                 s.off_instances,
                 spread(&s.scores),
                 spread(&s.rejected_scores),
@@ -212,8 +221,9 @@ impl LabelReport {
     }
 }
 
-/// Scores the pseudo labels of `split` against its `scene_gt.json`, scene by scene (scenes
-/// without both files are skipped). `names` maps object ids to names.
+/// Scores the pseudo labels of `split` against its `scene_gt.json` and its
+/// `scene_reference_gt.json`, scene by scene (scenes without labels, or with neither of the
+/// two, are skipped). `names` maps object ids to names.
 pub fn report(
     dataset: &BopDataset,
     split: &str,
@@ -225,7 +235,8 @@ pub fn report(
     let mut repairs = RotationRepairs::default();
     for scene_id in dataset.scene_ids(split)? {
         let scene = dataset.scene(split, scene_id);
-        if !scene.pseudo_gt_path().exists() || !scene.gt_path().exists() {
+        let scored = scene.gt_path().exists() || scene.reference_gt_path().exists();
+        if !scene.pseudo_gt_path().exists() || !scored {
             continue;
         }
         repairs.merge(&score_scene(&scene, &models, &mut sums)?);
@@ -247,15 +258,22 @@ pub fn report(
     })
 }
 
-/// Adds the instances of `scene` that have both a pseudo-label entry and a ground-truth pose
-/// to the sums of their objects; an error when the two name different objects. Returns the
-/// ground-truth rotations read as their nearest rotations.
+/// Adds the instances of `scene` that have a pseudo-label entry to the sums of their objects:
+/// against the ground truth where `scene_gt.json` has their pose, against the reference set A
+/// where `scene_reference_gt.json` has one (a scene with A and no ground truth, such as real
+/// frames of a user's own camera, gets its completeness and precision alone); an error when
+/// the labels and the ground truth name different objects. Returns the ground-truth rotations
+/// read as their nearest rotations.
 fn score_scene(
     scene: &SceneDir,
     models: &BTreeMap<u32, ModelInfo>,
     sums: &mut BTreeMap<u32, ObjectSums>,
 ) -> Result<RotationRepairs, LabelError> {
-    let (gt, repairs) = read_scene_gt_repaired(&scene.gt_path())?;
+    let (gt, repairs) = if scene.gt_path().exists() {
+        read_scene_gt_repaired(&scene.gt_path())?
+    } else {
+        Default::default()
+    };
     let pseudo = read_pseudo_gt(&scene.pseudo_gt_path())?;
     let info = if scene.gt_info_path().exists() {
         Some(read_scene_gt_info(&scene.gt_info_path())?)
@@ -269,10 +287,11 @@ fn score_scene(
     };
     for (im_id, instances) in &pseudo {
         for (k, instance) in instances.iter().enumerate() {
-            let Some(truth) = gt.get(im_id).and_then(|list| list.get(k)) else {
-                continue;
-            };
-            if truth.obj_id != instance.obj_id {
+            let truth = gt.get(im_id).and_then(|list| list.get(k));
+            let reference = references.as_ref().and_then(|r| r.get(im_id)?.get(k));
+            if let Some(truth) = truth
+                && truth.obj_id != instance.obj_id
+            {
                 return Err(FileError::new(
                     &scene.pseudo_gt_path(),
                     format!("{im_id}[{k}].obj_id"),
@@ -280,19 +299,23 @@ fn score_scene(
                 )
                 .into());
             }
-            let group = models
-                .get(&truth.obj_id)
-                .map(|m| m.symmetry.clone())
-                .unwrap_or_default();
-            let visible = info
-                .as_ref()
-                .and_then(|info| info.get(im_id)?.get(k))
-                .map(|i| i.visib_fract);
+            if truth.is_none() && reference.is_none() {
+                continue;
+            }
             let sums = sums
-                .entry(truth.obj_id)
-                .or_insert_with(|| ObjectSums::new(truth.obj_id));
-            sums.add(instance, truth, &group, visible);
-            let reference = references.as_ref().and_then(|r| r.get(im_id)?.get(k));
+                .entry(instance.obj_id)
+                .or_insert_with(|| ObjectSums::new(instance.obj_id));
+            if let Some(truth) = truth {
+                let group = models
+                    .get(&truth.obj_id)
+                    .map(|m| m.symmetry.clone())
+                    .unwrap_or_default();
+                let visible = info
+                    .as_ref()
+                    .and_then(|info| info.get(im_id)?.get(k))
+                    .map(|i| i.visib_fract);
+                sums.add(instance, truth, &group, visible);
+            }
             if let Some(reference) = reference {
                 sums.add_reference(&instance.labels, &reference.labels, (scene.id, *im_id, k));
             }
@@ -470,4 +493,70 @@ fn percentiles(mut values: Vec<f64>) -> Option<[f64; 5]> {
     values.sort_by(f64::total_cmp);
     let last = values.len().checked_sub(1)?;
     Some([0.05, 0.25, 0.5, 0.75, 0.95].map(|q| values[(q * last as f64).round() as usize]))
+}
+
+#[cfg(test)]
+mod tests {
+    use bop_dataset::write_models_info;
+    use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+
+    use super::*;
+
+    /// Poses turned `degrees` about the camera's z axis, 0.5 m away.
+    fn turned(degrees: &[f64]) -> Vec<PseudoLabel> {
+        degrees
+            .iter()
+            .map(|d| PseudoLabel {
+                pose: Isometry3::from_parts(
+                    Translation3::new(0.0, 0.0, 0.5),
+                    UnitQuaternion::from_axis_angle(&Vector3::z_axis(), d.to_radians()),
+                ),
+                score: 0.8,
+            })
+            .collect()
+    }
+
+    /// A split without `scene_gt.json` (a user's own frames) whose labels and reference sets
+    /// were written: each instance's completeness and precision are reported, worked out by
+    /// hand from the turns (labels at 0°, 10°, 20° and 90°; A every 3° from 0.5° to 30.5°, of
+    /// which 27.5° and 30.5° lie more than 5° from a label, and no pose of A lies near 90°),
+    /// and the ground-truth scores are left empty.
+    #[test]
+    fn a_split_without_ground_truth_gets_completeness_and_precision_alone() {
+        let dir = tempfile::tempdir().unwrap();
+        let dataset = BopDataset::new(dir.path());
+        let info = ModelInfo {
+            diameter: 100.0,
+            min: None,
+            size: None,
+            symmetry: SymmetryGroup::default(),
+        };
+        std::fs::create_dir_all(dir.path().join("models")).unwrap();
+        write_models_info(&dataset.models_info_path(), &BTreeMap::from([(1, info)])).unwrap();
+        let scene = dataset.scene("test", 0);
+        std::fs::create_dir_all(scene.pseudo_gt_path().parent().unwrap()).unwrap();
+        let instance = |labels| PseudoInstance {
+            obj_id: 1,
+            labels,
+            ..Default::default()
+        };
+        let reference: Vec<f64> = (0..11).map(|k| 0.5 + 3.0 * f64::from(k)).collect();
+        let write = |path: &std::path::Path, labels| {
+            bop_dataset::write_pseudo_gt(path, &BTreeMap::from([(0, vec![instance(labels)])]))
+                .unwrap()
+        };
+        write(&scene.pseudo_gt_path(), turned(&[0.0, 10.0, 20.0, 90.0]));
+        write(&scene.reference_gt_path(), turned(&reference));
+        assert!(!scene.gt_path().exists());
+
+        let scores = report(&dataset, "test", &BTreeMap::new(), "own").unwrap();
+        let object = &scores.objects["obj_000001"];
+        assert_eq!(object.instances, 0);
+        assert_eq!(object.against_reference.len(), 1);
+        assert!((object.completeness.unwrap() - 9.0 / 11.0).abs() < 1e-12);
+        assert!((object.precision.unwrap() - 0.75).abs() < 1e-12);
+        let row = scores.to_markdown().lines().last().unwrap().to_string();
+        assert!(row.contains("| – | – |"), "{row}");
+        assert!(row.contains("81.8%, 75.0% (1 instances)"), "{row}");
+    }
 }

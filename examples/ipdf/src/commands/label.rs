@@ -89,8 +89,10 @@ pub struct LabelArgs {
     /// labels; without it a split labelled with other options is refused.
     #[arg(long)]
     pub relabel: bool,
-    /// Score the labels against scene_gt.json: JSON here, a markdown table beside it (.md) and
-    /// the figure of each object's label errors (.png).
+    /// Score the labels against scene_gt.json, and against the reference sets A where
+    /// --reference made them (a split without ground truth gets completeness and precision
+    /// alone): JSON here, a markdown table beside it (.md) and the figure of each object's
+    /// label errors (.png).
     #[arg(long)]
     pub report: Option<PathBuf>,
 }
