@@ -516,6 +516,33 @@ mod tests {
             .collect()
     }
 
+    /// A dataset of object 1 (`models_info.json` only) with an empty scene 0 of split `test`
+    /// and no ground truth: the dataset and its scene.
+    fn split_without_truth(dir: &std::path::Path) -> (BopDataset, SceneDir) {
+        let dataset = BopDataset::new(dir);
+        let info = ModelInfo {
+            diameter: 100.0,
+            min: None,
+            size: None,
+            symmetry: SymmetryGroup::default(),
+        };
+        std::fs::create_dir_all(dir.join("models")).unwrap();
+        write_models_info(&dataset.models_info_path(), &BTreeMap::from([(1, info)])).unwrap();
+        let scene = dataset.scene("test", 0);
+        std::fs::create_dir_all(scene.pseudo_gt_path().parent().unwrap()).unwrap();
+        (dataset, scene)
+    }
+
+    /// The pose sets of one instance of object 1 in image 0, written to `path`.
+    fn write_sets(path: &std::path::Path, labels: Vec<PseudoLabel>) {
+        let instance = PseudoInstance {
+            obj_id: 1,
+            labels,
+            ..Default::default()
+        };
+        bop_dataset::write_pseudo_gt(path, &BTreeMap::from([(0, vec![instance])])).unwrap();
+    }
+
     /// A split without `scene_gt.json` (a user's own frames) whose labels and reference sets
     /// were written: each instance's completeness and precision are reported, worked out by
     /// hand from the turns (labels at 0°, 10°, 20° and 90°; A every 3° from 0.5° to 30.5°, of
@@ -524,29 +551,10 @@ mod tests {
     #[test]
     fn a_split_without_ground_truth_gets_completeness_and_precision_alone() {
         let dir = tempfile::tempdir().unwrap();
-        let dataset = BopDataset::new(dir.path());
-        let info = ModelInfo {
-            diameter: 100.0,
-            min: None,
-            size: None,
-            symmetry: SymmetryGroup::default(),
-        };
-        std::fs::create_dir_all(dir.path().join("models")).unwrap();
-        write_models_info(&dataset.models_info_path(), &BTreeMap::from([(1, info)])).unwrap();
-        let scene = dataset.scene("test", 0);
-        std::fs::create_dir_all(scene.pseudo_gt_path().parent().unwrap()).unwrap();
-        let instance = |labels| PseudoInstance {
-            obj_id: 1,
-            labels,
-            ..Default::default()
-        };
+        let (dataset, scene) = split_without_truth(dir.path());
         let reference: Vec<f64> = (0..11).map(|k| 0.5 + 3.0 * f64::from(k)).collect();
-        let write = |path: &std::path::Path, labels| {
-            bop_dataset::write_pseudo_gt(path, &BTreeMap::from([(0, vec![instance(labels)])]))
-                .unwrap()
-        };
-        write(&scene.pseudo_gt_path(), turned(&[0.0, 10.0, 20.0, 90.0]));
-        write(&scene.reference_gt_path(), turned(&reference));
+        write_sets(&scene.pseudo_gt_path(), turned(&[0.0, 10.0, 20.0, 90.0]));
+        write_sets(&scene.reference_gt_path(), turned(&reference));
         assert!(!scene.gt_path().exists());
 
         let scores = report(&dataset, "test", &BTreeMap::new(), "own").unwrap();
@@ -558,5 +566,23 @@ mod tests {
         let row = scores.to_markdown().lines().last().unwrap().to_string();
         assert!(row.contains("| – | – |"), "{row}");
         assert!(row.contains("81.8%, 75.0% (1 instances)"), "{row}");
+    }
+
+    /// A malformed `scene_reference_gt.json` in a split without ground truth is refused,
+    /// naming the file, not skipped.
+    #[test]
+    fn a_malformed_reference_file_without_ground_truth_is_refused_by_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let (dataset, scene) = split_without_truth(dir.path());
+        write_sets(&scene.pseudo_gt_path(), turned(&[0.0]));
+        std::fs::write(
+            scene.reference_gt_path(),
+            r#"{"0": [{"obj_id": 1, "labels": [{"cam_R_m2c": [1, 0]}]}]}"#,
+        )
+        .unwrap();
+        let error = report(&dataset, "test", &BTreeMap::new(), "own")
+            .unwrap_err()
+            .to_string();
+        assert!(error.contains("scene_reference_gt.json"), "{error}");
     }
 }
