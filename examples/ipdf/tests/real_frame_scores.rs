@@ -105,6 +105,10 @@ fn real_frames_are_scored_per_instance_from_their_boxes_as_from_masks_filling_th
     assert!((row["visib_fract"].as_f64().unwrap() - 0.961_893_764_434_180_2).abs() < 1e-12);
     let error = row["rotation_error_deg"].as_f64().unwrap();
     assert!((0.0..=180.0).contains(&error), "{row}");
+    // One crop: its own MAAD and Recall MAAD are the run's.
+    for key in ["maad_deg", "recall_maad_deg"] {
+        assert_eq!(row[key], from_boxes[key], "{key}: {row}");
+    }
     let accuracy = &from_boxes["accuracy"];
     assert_eq!(
         accuracy["acc_15"].as_f64().unwrap(),
@@ -130,7 +134,9 @@ fn real_frames_are_scored_per_instance_from_their_boxes_as_from_masks_filling_th
             .ends_with("scene_gt.json: 3[3].cam_R_m2c")
     );
     let table = std::fs::read_to_string(dir.path().join("boxes.md")).unwrap();
-    assert!(table.contains("| scene | image | instance | visible | rotation error (°) | LLH |"));
+    assert!(table.contains(
+        "| scene | image | instance | visible | rotation error (°) | LLH | MAAD (°) | Recall MAAD (°) |"
+    ));
     assert!(table.contains("| 2 | 3 | 1 | 96% |"), "{table}");
     assert!(
         table.contains("1 instances (visible fraction ≥ 0.1): Acc@15°"),

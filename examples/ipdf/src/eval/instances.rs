@@ -6,11 +6,12 @@
 use std::fmt::Write as _;
 
 use ipdf_metrics::{add, add_s, translation_error};
-use nalgebra::{Isometry3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Vector3};
 use serde::{Deserialize, Serialize};
 use so3_grid::geodesic_distance;
 
 use crate::Error;
+use crate::eval::rotation::RotationEvaluation;
 use crate::eval::translation::ObjectModel;
 use crate::training_data::Examples;
 
@@ -42,6 +43,14 @@ pub struct InstanceScore {
     pub rotation_error_deg: f64,
     /// Mean log-density of the ground-truth set (nats; the uniform density scores −2.29).
     pub llh: f64,
+    /// MAAD against the ground-truth set, degrees (`ipdf eval`'s `maad_deg` is their mean).
+    #[serde(default)]
+    pub maad_deg: f64,
+    /// Recall MAAD against the ground-truth set, degrees: how far the farthest-reaching
+    /// members of the set lie from the predicted cells (`ipdf eval`'s `recall_maad_deg` is
+    /// their mean).
+    #[serde(default)]
+    pub recall_maad_deg: f64,
     /// Distance of the most likely translation from the truth (mm), for pose runs.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub translation_error_mm: Option<f64>,
@@ -86,15 +95,15 @@ pub struct PoseParts<'a> {
     pub object: &'a ObjectModel,
 }
 
-/// Each instance's scores and their summary, from each crop's LLH and most likely rotation
-/// (and, for pose runs, the translations).
+/// Each instance's scores and their summary, from each crop's scores and most likely rotation
+/// in `evaluation` (and, for pose runs, the translations).
 pub fn score_instances(
     examples: &Examples,
-    llh: &[f64],
-    rotations: &[UnitQuaternion<f64>],
+    evaluation: &RotationEvaluation,
     pose: Option<&PoseParts>,
     min_visib: f64,
 ) -> Result<(Vec<InstanceScore>, Accuracy), Error> {
+    let rotations = &evaluation.argmax;
     let truth_sets = examples.required_truth_sets()?;
     let truth_poses = examples.required_truth_poses()?;
     let mut rows = Vec::with_capacity(truth_sets.len());
@@ -111,7 +120,9 @@ pub fn score_instances(
             instance: at.instance,
             visib_fract: examples.visible_fractions[i],
             rotation_error_deg: nearest.to_degrees(),
-            llh: llh[i],
+            llh: evaluation.llh[i],
+            maad_deg: evaluation.maad_deg[i],
+            recall_maad_deg: evaluation.recall_maad_deg[i],
             translation_error_mm: estimate
                 .map(|e| translation_error(&e.translation.vector, &truth.translation.vector)),
             add_mm: pose.zip(estimate).map(|(p, e)| {
@@ -162,9 +173,10 @@ pub fn median(values: &mut [f64]) -> f64 {
 /// The instances and their summary as a Markdown table, under a heading naming `what`.
 pub fn markdown(what: &str, rows: &[InstanceScore], accuracy: &Accuracy) -> String {
     let pose = accuracy.add_metric.as_deref();
-    let mut out =
-        format!("## {what}\n\n| scene | image | instance | visible | rotation error (°) | LLH |");
-    let mut rule = String::from("|---|---|---|---|---|---|");
+    let mut out = format!(
+        "## {what}\n\n| scene | image | instance | visible | rotation error (°) | LLH | MAAD (°) | Recall MAAD (°) |"
+    );
+    let mut rule = String::from("|---|---|---|---|---|---|---|---|");
     if let Some(metric) = pose {
         let _ = write!(out, " translation error (mm) | {metric} (mm) |");
         rule.push_str("---|---|");
@@ -176,8 +188,14 @@ pub fn markdown(what: &str, rows: &[InstanceScore], accuracy: &Accuracy) -> Stri
             .map_or("—".to_string(), |v| format!("{:.0}%", 100.0 * v));
         let _ = write!(
             out,
-            "| {} | {} | {} | {visible} | {:.1} | {:.2} |",
-            r.scene_id, r.im_id, r.instance, r.rotation_error_deg, r.llh
+            "| {} | {} | {} | {visible} | {:.1} | {:.2} | {:.1} | {:.1} |",
+            r.scene_id,
+            r.im_id,
+            r.instance,
+            r.rotation_error_deg,
+            r.llh,
+            r.maad_deg,
+            r.recall_maad_deg
         );
         if pose.is_some() {
             let mm = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.1}"));

@@ -294,8 +294,7 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
         });
         let (rows, accuracy) = score_instances(
             &examples,
-            &evaluation.llh,
-            &evaluation.argmax,
+            &evaluation,
             pose.as_ref(),
             request.min_visible_fraction,
         )?;

@@ -54,13 +54,17 @@ pub struct RotationEvaluation {
     pub scores: Scores,
     /// Each crop's LLH (mean log-density over its ground-truth set).
     pub llh: Vec<f64>,
+    /// Each crop's MAAD, degrees.
+    pub maad_deg: Vec<f64>,
+    /// Each crop's Recall MAAD, degrees.
+    pub recall_maad_deg: Vec<f64>,
     /// Each crop's most likely rotation (empty unless asked for).
     pub argmax: Vec<UnitQuaternion<f64>>,
 }
 
-/// [`evaluate`], with each crop's LLH, and with `argmax` each crop's most likely rotation too
-/// ([`Predictor::argmax_from`] on the same distribution). Each crop's image term is computed
-/// once.
+/// [`evaluate`], with each crop's LLH, MAAD and Recall MAAD, and with `argmax` each crop's most
+/// likely rotation too ([`Predictor::argmax_from`] on the same distribution). Each crop's image
+/// term is computed once.
 pub fn evaluate_rotations(
     model: &ImplicitPdf,
     examples: &Examples,
@@ -74,9 +78,9 @@ pub fn evaluate_rotations(
         refine: *grid,
         ..ArgmaxOptions::default()
     };
-    let (mut sum_maad, mut sum_recall, mut queries) = (0.0, 0.0, 0);
-    let mut sum_under = 0.0;
+    let (mut queries, mut sum_under) = (0, 0.0);
     let (mut llh, mut rotations) = (Vec::new(), Vec::new());
+    let (mut maad_deg, mut recall_maad_deg) = (Vec::new(), Vec::new());
     for (i, truth) in truths.iter().enumerate() {
         let crop = to_unit_floats(&examples.crops.get(i as i64));
         let image_term = predictor.image_term(&crop)?;
@@ -84,8 +88,8 @@ pub fn evaluate_rotations(
         let densities = predictor.log_densities_for(&image_term, truth, &masses)?;
         llh.push(densities.iter().sum::<f64>() / densities.len().max(1) as f64);
         let distribution = cell_distribution(&masses)?;
-        sum_maad += maad(&distribution, truth)?;
-        sum_recall += recall_maad(&distribution, truth, RECALL_THRESHOLD)?;
+        maad_deg.push(maad(&distribution, truth)?);
+        recall_maad_deg.push(recall_maad(&distribution, truth, RECALL_THRESHOLD)?);
         sum_under += predictor.under_resolution_for(&image_term, &masses)?;
         queries = queries.max(masses.queries);
         if argmax {
@@ -95,17 +99,20 @@ pub fn evaluate_rotations(
         progress.advance(1);
     }
     let n = truths.len().max(1) as f64;
+    let mean = |values: &[f64]| values.iter().sum::<f64>() / n;
     let scores = Scores {
         images: truths.len(),
-        llh: llh.iter().sum::<f64>() / n,
-        maad_deg: sum_maad / n,
-        recall_maad_deg: sum_recall / n,
+        llh: mean(&llh),
+        maad_deg: mean(&maad_deg),
+        recall_maad_deg: mean(&recall_maad_deg),
         queries_per_image: queries,
         under_resolution: sum_under / n,
     };
     Ok(RotationEvaluation {
         scores,
         llh,
+        maad_deg,
+        recall_maad_deg,
         argmax: rotations,
     })
 }
