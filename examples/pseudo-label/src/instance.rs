@@ -675,12 +675,12 @@ fn pose_set(
             let mistaken = mistaken_poses(model, view, observation, options, &trials);
             let mut candidates = vec![trials];
             candidates.extend(mistaken);
-            let best = candidates
+            let (best, best_score) = candidates
                 .iter()
                 .min_by(|a, b| a.score().total_cmp(&b.score()))
-                .expect("not empty")
-                .pose;
-            if candidates.iter().any(|c| c.score() <= threshold) {
+                .map(|c| (c.pose, c.score()))
+                .expect("not empty");
+            if best_score <= threshold {
                 // Twice as many starts as labels, spread over the symmetries: enough for the
                 // labels to be spread too after failures and merging. A turn about an axis of
                 // symmetry renders as the best does: the circles of the labels hold it.
@@ -691,10 +691,28 @@ fn pose_set(
                 );
                 let rotations: Vec<_> = symmetries.iter().map(|s| s.rotation).collect();
                 let starts = spread(&rotations, 2 * options.labels);
-                candidates.extend(starts[1..].iter().filter_map(|&i| {
-                    let pose = refine_symmetric_start(model, view, &(best * symmetries[i]))?;
-                    Some(Candidate::compared(model, observation, pose, options))
-                }));
+                let reseed = |from: &Isometry3<f64>| -> Vec<Candidate> {
+                    starts[1..]
+                        .iter()
+                        .filter_map(|&i| {
+                            let pose =
+                                refine_symmetric_start(model, view, &(from * symmetries[i]))?;
+                            Some(Candidate::compared(model, observation, pose, options))
+                        })
+                        .collect()
+                };
+                let mut twins = reseed(&best);
+                // A twin that refines to a better fit than the pose it came from would tell
+                // that pose apart; its own twins, placed as it is, take the others' place.
+                let better = twins
+                    .iter()
+                    .filter(|c| c.score() < best_score)
+                    .min_by(|a, b| a.score().total_cmp(&b.score()))
+                    .map(|c| c.pose);
+                if let Some(better) = better {
+                    twins.extend(reseed(&better));
+                }
+                candidates.extend(twins);
             }
             candidates
         }
