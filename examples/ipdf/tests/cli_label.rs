@@ -7,7 +7,7 @@ use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use common::{assert_fails, ipdf_json, read_json, s, synth, synth_args};
+use common::{assert_fails, ipdf_json, numbers, read_json, s, synth, synth_args};
 
 /// Every `scene_pseudo_gt.json` of the dataset's train split, by scene folder name.
 fn pseudo_gt_files(dir: &Path) -> Vec<(String, Vec<u8>)> {
@@ -397,14 +397,7 @@ fn a_malformed_scene_gt_info_stops_the_report_by_name_and_writes_none() {
 
 /// The rotation of a BOP `cam_R_m2c` (row-major 9).
 fn rotation_of(value: &serde_json::Value) -> nalgebra::UnitQuaternion<f64> {
-    let r: Vec<f64> = value
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_f64().unwrap())
-        .collect();
-    let matrix = nalgebra::Matrix3::from_row_slice(&r);
-    nalgebra::UnitQuaternion::from_matrix(&matrix)
+    nalgebra::UnitQuaternion::from_matrix(&nalgebra::Matrix3::from_row_slice(&numbers(value)))
 }
 
 /// Frame 93 of the demo's can (`--objects can --seed 0 --sensor kinect`, scene 0): its
@@ -437,22 +430,22 @@ fn a_can_whose_upside_down_twin_fits_better_keeps_both_circles() {
         .map(|label| rotation_of(&label["cam_R_m2c"]))
         .collect();
     let info = read_json(&dir.path().join("models/models_info.json"));
-    let flips: Vec<nalgebra::UnitQuaternion<f64>> = std::iter::once(serde_json::json!([
-        1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1
-    ]))
-    .chain(info["1"]["symmetries_discrete"].as_array().unwrap().clone())
-    .map(|m| {
-        let m: Vec<f64> = m
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|v| v.as_f64().unwrap())
+    // The identity and the symmetries of models_info.json (row-major 4 × 4).
+    let flips: Vec<nalgebra::UnitQuaternion<f64>> =
+        std::iter::once(nalgebra::UnitQuaternion::identity())
+            .chain(
+                info["1"]["symmetries_discrete"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|m| {
+                        let m = nalgebra::Matrix4::from_row_slice(&numbers(m));
+                        nalgebra::UnitQuaternion::from_matrix(
+                            &m.fixed_view::<3, 3>(0, 0).into_owned(),
+                        )
+                    }),
+            )
             .collect();
-        rotation_of(&serde_json::json!([
-            m[0], m[1], m[2], m[4], m[5], m[6], m[8], m[9], m[10]
-        ]))
-    })
-    .collect();
     assert_eq!(flips.len(), 2, "{info}");
     let orbit: Vec<_> = flips
         .iter()

@@ -1,4 +1,6 @@
 //! `ipdf register` through the real binary: PLY clouds in, a JSON pose out, one-line errors.
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -56,12 +58,7 @@ fn register_args<'a>(source: &'a Path, target: &'a Path) -> Vec<&'a str> {
 }
 
 fn transformation(value: &serde_json::Value) -> Isometry3<f64> {
-    let m: Vec<f64> = value["transformation"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_f64().unwrap())
-        .collect();
+    let m = common::numbers(&value["transformation"]);
     let matrix = nalgebra::Matrix4::from_row_slice(&m);
     let rotation = nalgebra::Rotation3::from_matrix(&matrix.fixed_view::<3, 3>(0, 0).into_owned());
     Isometry3::from_parts(

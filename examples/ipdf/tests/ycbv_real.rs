@@ -44,13 +44,7 @@ fn ipdf_label_labels_every_instance_of_the_real_frames() {
         assert!(labels.exists(), "{}", labels.display());
         let gt = common::read_json(&root.join(format!("test/{scene_id:06}/scene_gt.json")));
         for instance in gt["1"].as_array().unwrap() {
-            let r: Vec<f64> = instance["cam_R_m2c"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .map(|v| v.as_f64().unwrap())
-                .collect();
-            let m = nalgebra::Matrix3::from_row_slice(&r);
+            let m = nalgebra::Matrix3::from_row_slice(&common::numbers(&instance["cam_R_m2c"]));
             let error = (m.transpose() * m - nalgebra::Matrix3::identity())
                 .abs()
                 .max();

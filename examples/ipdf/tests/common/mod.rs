@@ -145,6 +145,16 @@ pub fn read_json(path: &Path) -> Value {
     .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
+/// The numbers of a JSON array (a BOP `cam_R_m2c`, a 4 × 4 matrix), in order.
+pub fn numbers(value: &Value) -> Vec<f64> {
+    value
+        .as_array()
+        .unwrap_or_else(|| panic!("not an array: {value}"))
+        .iter()
+        .map(|v| v.as_f64().unwrap_or_else(|| panic!("not a number: {v}")))
+        .collect()
+}
+
 /// Owned arguments as the `&str`s the helpers take.
 pub fn strs(words: &[String]) -> Vec<&str> {
     words.iter().map(String::as_str).collect()
