@@ -94,6 +94,7 @@ fn the_benchmark_runs_and_its_table_holds_every_instance_of_the_object() {
         assert_eq!(row["obj_id"].as_u64(), Some(OBJECT));
         for key in [
             "rotation_error_deg",
+            "vsd",
             "llh",
             "translation_error_mm",
             "add_mm",
@@ -112,6 +113,10 @@ fn the_benchmark_runs_and_its_table_holds_every_instance_of_the_object() {
     let checks = [
         ("acc_15", share(&|r| number(r, "rotation_error_deg") < 15.0)),
         ("acc_30", share(&|r| number(r, "rotation_error_deg") < 30.0)),
+        (
+            "acc_15_or_vsd",
+            share(&|r| number(r, "rotation_error_deg") < 15.0 || number(r, "vsd") < 0.3),
+        ),
         ("above_uniform", share(&|r| number(r, "llh") > uniform)),
         (
             "add_accuracy",

@@ -135,8 +135,10 @@ fn real_frames_are_scored_per_instance_from_their_boxes_as_from_masks_filling_th
     );
     let table = std::fs::read_to_string(dir.path().join("boxes.md")).unwrap();
     assert!(table.contains(
-        "| scene | image | instance | visible | rotation error (°) | LLH | MAAD (°) | Recall MAAD (°) |"
+        "| scene | image | instance | visible | rotation error (°) | VSD | LLH | MAAD (°) | Recall MAAD (°) |"
     ));
+    // The frame has no depth image: no VSD, and no share of true poses by it.
+    assert!(row.get("vsd").is_none() && accuracy.get("acc_15_or_vsd").is_none());
     assert!(table.contains("| 2 | 3 | 1 | 96% |"), "{table}");
     assert!(
         table.contains("1 instances (visible fraction ≥ 0.1): Acc@15°"),

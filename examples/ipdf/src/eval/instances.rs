@@ -1,5 +1,6 @@
 //! Scores per instance, as real frames are scored: the most likely rotation's angle to the
-//! nearest true pose under the object's symmetries, Acc@15° and Acc@30°, the truth's LLH
+//! nearest true pose under the object's symmetries, Acc@15° and Acc@30°, its VSD to the truth
+//! where the frame has depth (a true pose by what the camera sees), the truth's LLH
 //! against the uniform density, and for pose runs the translation error and ADD(-S) at 10% of
 //! the diameter (BOP's convention: ADD for objects without symmetries, ADD-S for those with).
 //! [`markdown`] writes them as a table.
@@ -12,6 +13,7 @@ use so3_grid::geodesic_distance;
 
 use crate::Error;
 use crate::eval::rotation::RotationEvaluation;
+use crate::eval::surface::VSD_CORRECT;
 use crate::eval::translation::ObjectModel;
 use crate::training_data::Examples;
 
@@ -41,6 +43,11 @@ pub struct InstanceScore {
     /// Angle of the most likely rotation to the nearest true pose under the object's
     /// symmetries, degrees (continuous symmetries in 200 steps: within 0.9° of exact).
     pub rotation_error_deg: f64,
+    /// BOP's VSD (δ 15 mm, τ 20 mm) of the most likely rotation placed at the true translation
+    /// against the truth, judged on the frame's depth image, where it has one: under 0.3 the
+    /// camera cannot tell the rotation from the truth.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vsd: Option<f64>,
     /// Mean log-density of the ground-truth set (nats; the uniform density scores −2.29).
     pub llh: f64,
     /// MAAD against the ground-truth set, degrees (`ipdf eval`'s `maad_deg` is their mean).
@@ -70,6 +77,11 @@ pub struct Accuracy {
     pub acc_15: f64,
     /// Share under 30°.
     pub acc_30: f64,
+    /// Share whose most likely rotation is a true pose: under 15° from the truth's symmetries,
+    /// or under 0.3 in VSD (instances without a depth image by the angle alone); where the
+    /// split has depth images.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub acc_15_or_vsd: Option<f64>,
     /// Median rotation error, degrees.
     pub median_rotation_error_deg: f64,
     /// Share of instances whose truth is denser than the uniform density.
@@ -97,10 +109,12 @@ pub struct PoseParts<'a> {
 
 /// Each instance's scores and their summary, from each crop's scores and most likely rotation
 /// in `evaluation` (and, for pose runs, the translations).
+/// `vsd` holds each instance's [`InstanceScore::vsd`] (empty: none computed).
 pub fn score_instances(
     examples: &Examples,
     evaluation: &RotationEvaluation,
     pose: Option<&PoseParts>,
+    vsd: &[Option<f64>],
     min_visib: f64,
 ) -> Result<(Vec<InstanceScore>, Accuracy), Error> {
     let rotations = &evaluation.argmax;
@@ -120,6 +134,7 @@ pub fn score_instances(
             instance: at.instance,
             visib_fract: examples.visible_fractions[i],
             rotation_error_deg: nearest.to_degrees(),
+            vsd: vsd.get(i).copied().flatten(),
             llh: evaluation.llh[i],
             maad_deg: evaluation.maad_deg[i],
             recall_maad_deg: evaluation.recall_maad_deg[i],
@@ -150,6 +165,9 @@ fn summarise(rows: &[InstanceScore], pose: Option<&PoseParts>, min_visib: f64) -
         min_visib,
         acc_15: share(&|r| r.rotation_error_deg < low),
         acc_30: share(&|r| r.rotation_error_deg < high),
+        acc_15_or_vsd: rows.iter().any(|r| r.vsd.is_some()).then(|| {
+            share(&|r| r.rotation_error_deg < low || r.vsd.is_some_and(|v| v < VSD_CORRECT))
+        }),
         median_rotation_error_deg: median(&mut errors),
         above_uniform: share(&|r| r.llh > uniform_llh()),
         uniform_llh: uniform_llh(),
@@ -174,9 +192,9 @@ pub fn median(values: &mut [f64]) -> f64 {
 pub fn markdown(what: &str, rows: &[InstanceScore], accuracy: &Accuracy) -> String {
     let pose = accuracy.add_metric.as_deref();
     let mut out = format!(
-        "## {what}\n\n| scene | image | instance | visible | rotation error (°) | LLH | MAAD (°) | Recall MAAD (°) |"
+        "## {what}\n\n| scene | image | instance | visible | rotation error (°) | VSD | LLH | MAAD (°) | Recall MAAD (°) |"
     );
-    let mut rule = String::from("|---|---|---|---|---|---|---|---|");
+    let mut rule = String::from("|---|---|---|---|---|---|---|---|---|");
     if let Some(metric) = pose {
         let _ = write!(out, " translation error (mm) | {metric} (mm) |");
         rule.push_str("---|---|");
@@ -186,9 +204,10 @@ pub fn markdown(what: &str, rows: &[InstanceScore], accuracy: &Accuracy) -> Stri
         let visible = r
             .visib_fract
             .map_or("—".to_string(), |v| format!("{:.0}%", 100.0 * v));
+        let vsd = r.vsd.map_or("—".to_string(), |v| format!("{v:.2}"));
         let _ = write!(
             out,
-            "| {} | {} | {} | {visible} | {:.1} | {:.2} | {:.1} | {:.1} |",
+            "| {} | {} | {} | {visible} | {:.1} | {vsd} | {:.2} | {:.1} | {:.1} |",
             r.scene_id,
             r.im_id,
             r.instance,
@@ -216,6 +235,13 @@ pub fn markdown(what: &str, rows: &[InstanceScore], accuracy: &Accuracy) -> Stri
         a.uniform_llh,
         100.0 * a.above_uniform
     );
+    if let Some(share) = a.acc_15_or_vsd {
+        let _ = write!(
+            out,
+            "; a true pose (under 15° or VSD under {VSD_CORRECT}) for {:.0}%",
+            100.0 * share
+        );
+    }
     if let (Some(metric), Some(share), Some(t)) =
         (pose, a.add_accuracy, a.median_translation_error_mm)
     {

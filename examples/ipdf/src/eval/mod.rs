@@ -4,6 +4,7 @@
 //! ([`instances`]).
 pub mod instances;
 pub mod rotation;
+pub mod surface;
 pub mod translation;
 
 use std::path::{Path, PathBuf};
@@ -292,10 +293,18 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
             translations,
             object,
         });
+        let vsd = surface::rotation_vsd(
+            &dataset,
+            &request.split,
+            info.obj_id,
+            &examples,
+            &evaluation.argmax,
+        )?;
         let (rows, accuracy) = score_instances(
             &examples,
             &evaluation,
             pose.as_ref(),
+            &vsd,
             request.min_visible_fraction,
         )?;
         (rows, Some(accuracy))

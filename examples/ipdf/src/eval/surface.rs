@@ -1,0 +1,203 @@
+//! Whether a most likely rotation shows the camera what the truth shows: BOP's Visible Surface
+//! Discrepancy (VSD) of the rotation placed at the true translation, against the frame's own
+//! depth image. A pose whose VSD to the truth is under 0.3 is one the view cannot tell from the
+//! truth (a box whose printed sides alone tell its half turns apart, a mug whose handle is
+//! hidden), so a rotation within 15° of the truth's symmetries *or* under that VSD counts as
+//! a true pose.
+use std::collections::BTreeMap;
+use std::collections::btree_map::Entry;
+
+use bop_dataset::{BopDataset, FileError, Intrinsics, read_depth, read_scene_camera};
+use depth_render::{Instance, Scene, Window, load_mesh, visible_surface_discrepancy};
+use nalgebra::{Isometry3, UnitQuaternion};
+
+use crate::Error;
+use crate::training_data::Examples;
+
+/// BOP's visibility tolerance δ (metres).
+pub const VSD_DELTA_M: f32 = 0.015;
+/// BOP's misalignment tolerance τ (metres).
+pub const VSD_TAU_M: f32 = 0.02;
+/// BOP 2018 counts a pose correct under this VSD.
+pub const VSD_CORRECT: f64 = 0.3;
+
+/// Each instance's VSD between its most likely rotation in `rotations`, placed at the true
+/// translation, and its ground-truth pose, judged against the depth image of its frame in
+/// `split` of `dataset`, with object `obj_id`'s mesh. `None` for an instance whose frame has
+/// no depth image or where neither pose is visible.
+pub fn rotation_vsd(
+    dataset: &BopDataset,
+    split: &str,
+    obj_id: u32,
+    examples: &Examples,
+    rotations: &[UnitQuaternion<f64>],
+) -> Result<Vec<Option<f64>>, Error> {
+    let truths = examples.required_truth_poses()?;
+    let path = dataset.model_path(obj_id);
+    let mesh = load_mesh(&path, 0.001)
+        .map_err(|e| FileError::new(&path, "mesh", e.to_string()))?
+        .mesh;
+    let scene_of_mesh = Scene::new(std::slice::from_ref(&mesh));
+    let mut cameras: BTreeMap<u32, BTreeMap<u32, Intrinsics>> = BTreeMap::new();
+    let mut scores = Vec::with_capacity(truths.len());
+    for ((at, truth), rotation) in examples.instances.iter().zip(truths).zip(rotations) {
+        let scene = dataset.scene(split, at.scene_id);
+        let depth_path = scene.depth_path(at.im_id);
+        if !depth_path.exists() {
+            scores.push(None);
+            continue;
+        }
+        let scene_cameras = match cameras.entry(at.scene_id) {
+            Entry::Occupied(entry) => entry.into_mut(),
+            Entry::Vacant(entry) => entry.insert(read_scene_camera(&scene.camera_path())?),
+        };
+        let intrinsics = scene_cameras.get(&at.im_id).ok_or_else(|| {
+            FileError::new(
+                &scene.camera_path(),
+                at.im_id.to_string(),
+                "no camera for this image",
+            )
+        })?;
+        let observed = read_depth(&depth_path, intrinsics.depth_scale)?;
+        let camera = intrinsics
+            .camera(observed.width, observed.height)
+            .map_err(|e| FileError::new(&scene.camera_path(), at.im_id.to_string(), e.to_string()))?
+            .camera;
+        let metres = |pose: &Isometry3<f64>| {
+            Isometry3::from_parts((pose.translation.vector / 1000.0).into(), pose.rotation)
+        };
+        let render = |pose: Isometry3<f64>| -> Result<Vec<f32>, Error> {
+            let window = Window::full(&camera);
+            Ok(scene_of_mesh
+                .render(&camera, &[Instance::new(0, pose)], window)
+                .map_err(|e| FileError::new(&depth_path, "render", e.to_string()))?
+                .depth)
+        };
+        let truth_depth = render(metres(truth))?;
+        let estimate = Isometry3::from_parts(truth.translation, *rotation);
+        let estimate_depth = render(metres(&estimate))?;
+        scores.push(
+            visible_surface_discrepancy(
+                &observed.pixels,
+                &estimate_depth,
+                &truth_depth,
+                VSD_DELTA_M,
+                VSD_TAU_M,
+            )
+            .map(f64::from),
+        );
+    }
+    Ok(scores)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::collections::BTreeMap;
+    use std::f64::consts::{FRAC_PI_2, PI};
+
+    use bop_dataset::{BopDataset, Intrinsics, write_depth, write_mesh_ply, write_scene_camera};
+    use depth_render::primitives::cuboid;
+    use depth_render::{Instance, PinholeCamera, Scene, Window};
+    use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+    use tch::{Device, Kind, Tensor};
+
+    use super::rotation_vsd;
+    use crate::training_data::{Examples, InstanceRef};
+
+    /// A 10 × 6 × 4 cm box half a metre in front of a 160 × 120 camera, tilted so that three
+    /// faces show; image 0 has its noise-free depth, image 1 none.
+    fn box_dataset(root: &std::path::Path) -> (BopDataset, Isometry3<f64>) {
+        let dataset = BopDataset::new(root);
+        let mesh = cuboid([0.10, 0.06, 0.04]).unwrap();
+        std::fs::create_dir_all(root.join("models")).unwrap();
+        write_mesh_ply(&dataset.model_path(1), &mesh).unwrap();
+        let intrinsics = Intrinsics {
+            fx: 200.0,
+            fy: 200.0,
+            cx: 80.0,
+            cy: 60.0,
+            depth_scale: 0.1,
+        };
+        let scene = dataset.scene("test", 0);
+        std::fs::create_dir_all(scene.dir.join("depth")).unwrap();
+        write_scene_camera(
+            &scene.camera_path(),
+            &BTreeMap::from([(0, intrinsics), (1, intrinsics)]),
+        )
+        .unwrap();
+        let rotation = UnitQuaternion::from_euler_angles(0.5, -0.4, 0.3);
+        let camera = PinholeCamera::new(200.0, 200.0, 80.0, 60.0, 160, 120).unwrap();
+        let metres = Isometry3::from_parts(Translation3::new(0.01, -0.02, 0.5), rotation);
+        let depth = Scene::new(std::slice::from_ref(&mesh))
+            .render(&camera, &[Instance::new(0, metres)], Window::full(&camera))
+            .unwrap()
+            .depth;
+        write_depth(&scene.depth_path(0), &depth, 160, 120, 0.1).unwrap();
+        let truth = Isometry3::from_parts(Translation3::new(10.0, -20.0, 500.0), rotation);
+        (dataset, truth)
+    }
+
+    fn examples(truth: Isometry3<f64>, images: &[u32]) -> Examples {
+        Examples {
+            crops: Tensor::zeros([images.len() as i64, 3, 8, 8], (Kind::Uint8, Device::Cpu)),
+            label_sets: vec![vec![truth.rotation]; images.len()],
+            translation_sets: vec![Vec::new(); images.len()],
+            geometry: Vec::new(),
+            truth_sets: None,
+            truth_poses: Some(vec![truth; images.len()]),
+            instances: images
+                .iter()
+                .map(|&im_id| InstanceRef {
+                    scene_id: 0,
+                    im_id,
+                    instance: 0,
+                })
+                .collect(),
+            visible_fractions: vec![None; images.len()],
+            repairs: Default::default(),
+        }
+    }
+
+    #[test]
+    fn a_rotation_is_scored_by_the_surface_the_camera_sees() {
+        let dir = tempfile::tempdir().unwrap();
+        let (dataset, truth) = box_dataset(dir.path());
+        let turned = |axis: Vector3<f64>, angle: f64| {
+            truth.rotation * UnitQuaternion::from_scaled_axis(axis * angle)
+        };
+        let rotations = [
+            truth.rotation,
+            // A box centred on its origin shows the same surface turned half about an axis.
+            turned(Vector3::x(), PI),
+            turned(Vector3::z(), PI),
+            // A quarter turn about z swaps its 10 cm and 6 cm sides.
+            turned(Vector3::z(), FRAC_PI_2),
+        ];
+        let scores: Vec<f64> = rotations
+            .iter()
+            .map(|r| {
+                rotation_vsd(&dataset, "test", 1, &examples(truth, &[0]), &[*r]).unwrap()[0]
+                    .unwrap()
+            })
+            .collect();
+        assert!(scores[0] < 1e-3, "{scores:?}");
+        assert!(scores[1] < 0.02 && scores[2] < 0.02, "{scores:?}");
+        assert!(scores[3] > 0.3, "{scores:?}");
+    }
+
+    #[test]
+    fn a_frame_without_depth_has_no_score() {
+        let dir = tempfile::tempdir().unwrap();
+        let (dataset, truth) = box_dataset(dir.path());
+        let scores = rotation_vsd(
+            &dataset,
+            "test",
+            1,
+            &examples(truth, &[1, 0]),
+            &[truth.rotation, truth.rotation],
+        )
+        .unwrap();
+        assert_eq!(scores[0], None);
+        assert!(scores[1].is_some_and(|v| v < 1e-3), "{scores:?}");
+    }
+}
