@@ -153,6 +153,30 @@ fn a_mesh_run_is_scored_on_the_real_frames() {
     let images = renders["images"].as_u64().unwrap();
     assert!((1..=4).contains(&images), "{renders}");
     assert!(renders["translation"]["median_error_mm"].as_f64().is_some());
+    // ... per render, against the symmetries the real set's models_info.json gives the object
+    // (the mustard bottle's half turn), which the renders' models_info.json now carries.
+    assert_eq!(
+        renders["instances"].as_array().unwrap().len() as u64,
+        images
+    );
+    let symmetries = |path: &Path, id: &str| -> Vec<f64> {
+        read_json(path)[id]["symmetries_discrete"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .flat_map(|m| m.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()))
+            .collect()
+    };
+    let real_symmetries = symmetries(&root.join("models/models_info.json"), "5");
+    let adopted = symmetries(&out.join("data/models/models_info.json"), "1");
+    assert_eq!(real_symmetries.len(), 16);
+    assert_eq!(adopted.len(), 16);
+    for (a, b) in adopted.iter().zip(&real_symmetries) {
+        assert!(
+            (a - b).abs() < 1e-6,
+            "{adopted:?} against {real_symmetries:?}"
+        );
+    }
     // Pseudo labels only: the training split has labels, and the run read no real pose.
     assert!(out.join("data/train/000000/scene_pseudo_gt.json").exists());
     let markdown = std::fs::read_to_string(out.join("report.md")).unwrap();

@@ -9,7 +9,10 @@ use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use bop_dataset::{BopDataset, read_json_as, write_atomically, write_json};
+use bop_dataset::{
+    BopDataset, FileError, read_json_as, read_models_info, write_atomically, write_json,
+    write_models_info,
+};
 use depth_render::SensorPreset;
 use ipdf_model::rotation::ImplicitPdf;
 use ipdf_model::{TRAIN_LOG, default_device};
@@ -135,6 +138,9 @@ pub fn run_mesh_pipeline(
     let real = request.real.as_ref();
     let mut stages = StageTimes::default();
     stages.run("synth", || synthesize_renders(&data, plan, request, seed))?;
+    if let Some(real) = real {
+        adopt_symmetries(&data, real)?;
+    }
     let labels = stages.run("label", || label_renders(out, &data, plan, seed))?;
     stages.run("train", || train_pose(&data, &model, plan, seed))?;
     let (renders, real_scores) = stages.run("eval", || score(out, &model, plan, real))?;
@@ -192,6 +198,25 @@ fn synthesize_renders(
     Ok(())
 }
 
+/// With a real split, the renders' object takes the symmetries its `models_info.json` gives
+/// the object there (the mesh is scored in that object's frame, so they are the mesh's), and
+/// its labels and validation renders are scored against every symmetric pose rather than the
+/// rendered one alone. Nothing trained reads them.
+fn adopt_symmetries(data: &Path, real: &RealSplit) -> Result<(), Error> {
+    let real_info = BopDataset::new(&real.dataset).models_info_path();
+    let symmetry = read_models_info(&real_info)?
+        .remove(&real.obj_id)
+        .ok_or_else(|| FileError::new(&real_info, real.obj_id.to_string(), "no such object"))?
+        .symmetry;
+    let path = BopDataset::new(data).models_info_path();
+    let mut models = read_models_info(&path)?;
+    for info in models.values_mut() {
+        info.symmetry.clone_from(&symmetry);
+    }
+    write_models_info(&path, &models)?;
+    Ok(())
+}
+
 /// Stage 2: pseudo labels of the training renders, scored against their truth
 /// (`labels.json`, kept: a rerun reads it back).
 fn label_renders(out: &Path, data: &Path, plan: &Plan, seed: u64) -> Result<LabelAccuracy, Error> {
@@ -244,7 +269,10 @@ fn score(
     plan: &Plan,
     real: Option<&RealSplit>,
 ) -> Result<(EvalResult, Option<EvalResult>), Error> {
-    let renders = EvalRequest::new(model.to_path_buf(), "val", plan.eval_level);
+    let renders = EvalRequest {
+        per_instance: true,
+        ..EvalRequest::new(model.to_path_buf(), "val", plan.eval_level)
+    };
     let renders = cached(&out.join("eval_renders.json"), &renders)?;
     let Some(real) = real else {
         return Ok((renders, None));
@@ -368,11 +396,16 @@ impl MeshReport {
                 String::new()
             },
         );
+        let against = if c.real.is_some() {
+            "against the rendered pose and its symmetries, which the real split's \
+             models_info.json gives"
+        } else {
+            "against the rendered pose alone: the mesh's symmetries are not known here, so a \
+             symmetric object's other poses count as errors"
+        };
         out += &format!(
-            "Pseudo labels of the training renders: a label within 5° of the rendered pose for \
-             {:.0}% of the instances; {:.1}° from a label to it on average (the mesh's \
-             symmetries are not known here, so the labels of a symmetric pose lie away from \
-             the one rendered).\n\n",
+            "Pseudo labels of the training renders: a label within 5° of the truth for {:.0}% \
+             of the instances; {:.1}° from a label to the truth on average ({against}).\n\n",
             100.0 * self.labels.coverage,
             self.labels.label_maad_deg
         );
@@ -382,11 +415,17 @@ impl MeshReport {
              {:.1}°",
             r.images, r.level, r.llh, r.maad_deg, r.recall_maad_deg
         );
+        if let Some(a) = &r.accuracy {
+            out += &format!(
+                ", Acc@15° {:.0}%, median rotation error {:.1}°",
+                100.0 * a.acc_15,
+                a.median_rotation_error_deg
+            );
+        }
         if let Some(t) = &r.translation {
             out += &format!(", translation error median {:.1} mm", t.median_error_mm);
         }
-        out += " (against the rendered pose alone: a symmetric object's other poses count as \
-                errors).\n\n";
+        out += &format!(" ({against}).\n\n");
         if let Some(real) = &self.real
             && let Some(accuracy) = &real.accuracy
         {
