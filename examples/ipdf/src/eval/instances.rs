@@ -43,9 +43,10 @@ pub struct InstanceScore {
     /// Angle of the most likely rotation to the nearest true pose under the object's
     /// symmetries, degrees (continuous symmetries in 200 steps: within 0.9° of exact).
     pub rotation_error_deg: f64,
-    /// BOP's VSD (δ 15 mm, τ 20 mm) of the most likely rotation placed at the true translation
-    /// against the truth, judged on the frame's depth image, where it has one: under 0.3 the
-    /// camera cannot tell the rotation from the truth.
+    /// BOP's VSD (δ 15 mm, τ 20 mm) of the most likely rotation, turned about the object's
+    /// centre from the truth, against the truth, judged on the frame's depth image where it
+    /// has one: under 0.3 the camera cannot tell the rotation from the truth
+    /// ([`crate::eval::surface::rotation_vsd`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub vsd: Option<f64>,
     /// Mean log-density of the ground-truth set (nats; the uniform density scores −2.29).

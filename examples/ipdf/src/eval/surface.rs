@@ -1,6 +1,6 @@
 //! Whether a most likely rotation shows the camera what the truth shows: BOP's Visible Surface
-//! Discrepancy (VSD) of the rotation placed at the true translation, against the frame's own
-//! depth image. A pose whose VSD to the truth is under 0.3 is one the view cannot tell from the
+//! Discrepancy (VSD) of the rotation turned about the object's centre from the truth (its
+//! bounding box's centre stays where the truth puts it), against the frame's own depth image. A pose whose VSD to the truth is under 0.3 is one the view cannot tell from the
 //! truth (a box whose printed sides alone tell its half turns apart, a mug whose handle is
 //! hidden), so a rotation within 15° of the truth's symmetries *or* under that VSD counts as
 //! a true pose.
@@ -21,10 +21,13 @@ pub const VSD_TAU_M: f32 = 0.02;
 /// BOP 2018 counts a pose correct under this VSD.
 pub const VSD_CORRECT: f64 = 0.3;
 
-/// Each instance's VSD between its most likely rotation in `rotations`, placed at the true
-/// translation, and its ground-truth pose, judged against the depth image of its frame in
-/// `split` of `dataset`, with object `obj_id`'s mesh. `None` for an instance whose frame has
-/// no depth image or where neither pose is visible.
+/// Each instance's VSD between its most likely rotation in `rotations` and its ground-truth
+/// pose, judged against the depth image of its frame in `split` of `dataset`, with object
+/// `obj_id`'s mesh. The rotation is placed so that the centre of the mesh's bounding box lies
+/// where the truth puts it: a rotation says nothing of where the object is, and a box turned
+/// half about its own centre shows the surface the truth shows even where the mesh's origin is
+/// off that centre. `None` for an instance whose frame has no depth image or where neither
+/// pose is visible.
 pub fn rotation_vsd(
     dataset: &BopDataset,
     split: &str,
@@ -37,6 +40,8 @@ pub fn rotation_vsd(
     let mesh = load_mesh(&path, 0.001)
         .map_err(|e| FileError::new(&path, "mesh", e.to_string()))?
         .mesh;
+    let (low, high) = mesh.bounds();
+    let centre = nalgebra::center(&low, &high).cast::<f64>() * 1000.0;
     let scene_of_mesh = Scene::new(std::slice::from_ref(&mesh));
     let mut cameras: BTreeMap<u32, BTreeMap<u32, Intrinsics>> = BTreeMap::new();
     let mut scores = Vec::with_capacity(truths.len());
@@ -74,7 +79,8 @@ pub fn rotation_vsd(
                 .depth)
         };
         let truth_depth = render(metres(truth))?;
-        let estimate = Isometry3::from_parts(truth.translation, *rotation);
+        let at_centre = truth.transform_point(&centre) - rotation.transform_point(&centre);
+        let estimate = Isometry3::from_parts(at_centre.into(), *rotation);
         let estimate_depth = render(metres(&estimate))?;
         scores.push(
             visible_surface_discrepancy(
@@ -97,18 +103,22 @@ mod tests {
 
     use bop_dataset::{BopDataset, Intrinsics, write_depth, write_mesh_ply, write_scene_camera};
     use depth_render::primitives::cuboid;
-    use depth_render::{Instance, PinholeCamera, Scene, Window};
+    use depth_render::{Instance, PinholeCamera, Scene, TriangleMesh, Window};
     use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
     use tch::{Device, Kind, Tensor};
 
     use super::rotation_vsd;
     use crate::training_data::{Examples, InstanceRef};
 
-    /// A 10 × 6 × 4 cm box half a metre in front of a 160 × 120 camera, tilted so that three
-    /// faces show; image 0 has its noise-free depth, image 1 none.
+    /// A 10 × 6 × 4 cm box whose centre lies 3 cm and 2 cm off its mesh's origin, half a metre
+    /// in front of a 160 × 120 camera, tilted so that three faces show; image 0 has its
+    /// noise-free depth, image 1 none.
     fn box_dataset(root: &std::path::Path) -> (BopDataset, Isometry3<f64>) {
         let dataset = BopDataset::new(root);
-        let mesh = cuboid([0.10, 0.06, 0.04]).unwrap();
+        let centred = cuboid([0.10, 0.06, 0.04]).unwrap();
+        let offset = Vector3::new(0.03, 0.0, 0.02);
+        let positions = centred.positions().iter().map(|p| p + offset).collect();
+        let mesh = TriangleMesh::new(positions, centred.triangles().to_vec()).unwrap();
         std::fs::create_dir_all(root.join("models")).unwrap();
         write_mesh_ply(&dataset.model_path(1), &mesh).unwrap();
         let intrinsics = Intrinsics {
@@ -167,7 +177,8 @@ mod tests {
         };
         let rotations = [
             truth.rotation,
-            // A box centred on its origin shows the same surface turned half about an axis.
+            // A box shows the same surface turned half about an axis through its centre (the
+            // rotation is placed about the centre, 3 cm and 2 cm from the mesh's origin).
             turned(Vector3::x(), PI),
             turned(Vector3::z(), PI),
             // A quarter turn about z swaps its 10 cm and 6 cm sides.
