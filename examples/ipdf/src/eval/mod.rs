@@ -349,6 +349,20 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
     })
 }
 
+/// Object `obj_id`'s mesh in `dataset`, at `scale` metres per mesh unit (BOP meshes are in
+/// millimetres: 1.0 keeps them so, 0.001 gives metres); a mesh that cannot be read is an error
+/// naming its file.
+pub(crate) fn object_mesh(
+    dataset: &BopDataset,
+    obj_id: u32,
+    scale: f64,
+) -> Result<depth_render::TriangleMesh, Error> {
+    let path = dataset.model_path(obj_id);
+    Ok(depth_render::load_mesh(&path, scale)
+        .map_err(|e| bop_dataset::FileError::new(&path, "mesh", e.to_string()))?
+        .mesh)
+}
+
 /// The file the pipeline keeps a run's scores at `level` in.
 pub fn eval_file(run_dir: &Path, level: u8) -> PathBuf {
     run_dir.join(format!("eval_level{level}.json"))

@@ -1,17 +1,18 @@
 //! Whether a most likely rotation shows the camera what the truth shows: BOP's Visible Surface
 //! Discrepancy (VSD) of the rotation turned about the object's centre from the truth (its
-//! bounding box's centre stays where the truth puts it), against the frame's own depth image. A pose whose VSD to the truth is under 0.3 is one the view cannot tell from the
-//! truth (a box whose printed sides alone tell its half turns apart, a mug whose handle is
-//! hidden), so a rotation within 15° of the truth's symmetries *or* under that VSD counts as
-//! a true pose.
+//! bounding box's centre stays where the truth puts it), against the frame's own depth image.
+//! A pose whose VSD to the truth is under 0.3 is one the view cannot tell from the truth (a box
+//! whose printed sides alone tell its half turns apart, a mug whose handle is hidden), so a
+//! rotation within 15° of the truth's symmetries *or* under that VSD counts as a true pose.
 use std::collections::BTreeMap;
 use std::collections::btree_map::Entry;
 
 use bop_dataset::{BopDataset, FileError, Intrinsics, read_depth, read_scene_camera};
-use depth_render::{Instance, Scene, Window, load_mesh, visible_surface_discrepancy};
+use depth_render::{Instance, Scene, Window, visible_surface_discrepancy};
 use nalgebra::{Isometry3, UnitQuaternion};
 
 use crate::Error;
+use crate::eval::object_mesh;
 use crate::training_data::Examples;
 
 /// BOP's visibility tolerance δ (metres).
@@ -36,12 +37,9 @@ pub fn rotation_vsd(
     rotations: &[UnitQuaternion<f64>],
 ) -> Result<Vec<Option<f64>>, Error> {
     let truths = examples.required_truth_poses()?;
-    let path = dataset.model_path(obj_id);
-    let mesh = load_mesh(&path, 0.001)
-        .map_err(|e| FileError::new(&path, "mesh", e.to_string()))?
-        .mesh;
+    let mesh = object_mesh(dataset, obj_id, 0.001)?;
     let (low, high) = mesh.bounds();
-    let centre = nalgebra::center(&low, &high).cast::<f64>() * 1000.0;
+    let centre = nalgebra::center(&low, &high).cast::<f64>();
     let scene_of_mesh = Scene::new(std::slice::from_ref(&mesh));
     let mut cameras: BTreeMap<u32, BTreeMap<u32, Intrinsics>> = BTreeMap::new();
     let mut scores = Vec::with_capacity(truths.len());
@@ -68,9 +66,6 @@ pub fn rotation_vsd(
             .camera(observed.width, observed.height)
             .map_err(|e| FileError::new(&scene.camera_path(), at.im_id.to_string(), e.to_string()))?
             .camera;
-        let metres = |pose: &Isometry3<f64>| {
-            Isometry3::from_parts((pose.translation.vector / 1000.0).into(), pose.rotation)
-        };
         let render = |pose: Isometry3<f64>| -> Result<Vec<f32>, Error> {
             let window = Window::full(&camera);
             Ok(scene_of_mesh
@@ -78,10 +73,11 @@ pub fn rotation_vsd(
                 .map_err(|e| FileError::new(&depth_path, "render", e.to_string()))?
                 .depth)
         };
-        let truth_depth = render(metres(truth))?;
+        let truth =
+            Isometry3::from_parts((truth.translation.vector / 1000.0).into(), truth.rotation);
         let at_centre = truth.transform_point(&centre) - rotation.transform_point(&centre);
-        let estimate = Isometry3::from_parts(at_centre.into(), *rotation);
-        let estimate_depth = render(metres(&estimate))?;
+        let truth_depth = render(truth)?;
+        let estimate_depth = render(Isometry3::from_parts(at_centre.into(), *rotation))?;
         scores.push(
             visible_surface_discrepancy(
                 &observed.pixels,

@@ -189,10 +189,7 @@ pub struct ObjectModel {
 impl ObjectModel {
     /// Object `obj_id` of `dataset`: its mesh sampled and its `models_info.json` entry.
     pub fn load(dataset: &BopDataset, obj_id: u32) -> Result<Self, Error> {
-        let path = dataset.model_path(obj_id);
-        let mesh = depth_render::load_mesh(&path, 1.0)
-            .map_err(|e| bop_dataset::FileError::new(&path, "mesh", e.to_string()))?
-            .mesh;
+        let mesh = crate::eval::object_mesh(dataset, obj_id, 1.0)?;
         let (points, _) = depth_render::sample_surface(&mesh, ADD_S_POINTS, u64::from(obj_id));
         let points: Vec<Point3<f64>> = points.iter().map(|p| p.cast()).collect();
         let models = bop_dataset::read_models_info(&dataset.models_info_path())?;
