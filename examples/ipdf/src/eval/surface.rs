@@ -207,4 +207,25 @@ mod tests {
         assert_eq!(scores[0], None);
         assert!(scores[1].is_some_and(|v| v < 1e-3), "{scores:?}");
     }
+
+    #[test]
+    fn a_frame_with_depth_but_no_camera_is_refused_naming_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let (dataset, truth) = box_dataset(dir.path());
+        let scene = dataset.scene("test", 0);
+        std::fs::copy(scene.depth_path(0), scene.depth_path(2)).unwrap();
+        let error = rotation_vsd(
+            &dataset,
+            "test",
+            1,
+            &examples(truth, &[2]),
+            &[truth.rotation],
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            error.contains("scene_camera.json") && error.contains("no camera for this image"),
+            "{error}"
+        );
+    }
 }
