@@ -79,7 +79,7 @@ pub use mesh_io::{LoadedMesh, Vertices, load_mesh, load_vertices, write_ply};
 pub use mesh_repair::MeshRepairs;
 pub use mesh_scale::{PLAUSIBLE_SIZE_M, check_mesh_size};
 pub use render::{Instance, NO_TRIANGLE, Rendering, Scene, Window};
-pub use resting::{RestingPose, group_by_symmetry, resting_poses};
+pub use resting::{FACE_ANGLE_DEG, RestingPose, group_by_symmetry, resting_poses};
 pub use sampling::sample_surface;
 pub use sensor::{DepthSensor, SensorPreset};
 pub use shading::{ImageTexture, Lighting, Material};

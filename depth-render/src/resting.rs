@@ -1,6 +1,9 @@
 //! Physically plausible resting poses on a horizontal table: the faces of the convex hull on
-//! which the object stands still, i.e. whose plane holds the projection of the centre of mass
-//! strictly inside the face.
+//! which the object stands still, i.e. whose support polygon holds the projection of the centre
+//! of mass strictly inside, and how firmly it stands there (its tipping angle). A face is the
+//! hull triangles within [`FACE_ANGLE_DEG`] of one normal, so that a scan's flat side, whose
+//! hull is a patchwork of triangles a degree or two apart, is one face and not a scatter of
+//! small ones the centre of mass falls outside.
 use nalgebra::{Isometry3, Point3, Translation3, Unit, UnitQuaternion, Vector3};
 
 use crate::{RenderError, TriangleMesh};
@@ -15,6 +18,12 @@ pub struct RestingPose {
     /// Chance of coming to rest on this face from a random orientation: the solid angle the face
     /// subtends at the centre of mass, renormalised over the stable faces.
     pub probability: f64,
+    /// The smallest tilt (radians) that tips the object over an edge of this face: the arctangent
+    /// of the distance from the centre of mass's projection to the face's boundary over the
+    /// centre's height above the face. A box of edges `a < b < c` standing on its `a × b` end
+    /// tips at `atan(a / c)`; a tessellated can lying on one facet of its side, at half the
+    /// angle between facets.
+    pub tipping_angle: f64,
 }
 
 impl RestingPose {
@@ -55,18 +64,21 @@ pub fn resting_poses(mesh: &TriangleMesh) -> Result<Vec<RestingPose>, RenderErro
         centre_of_mass(mesh, &hull, &hull_triangles).ok_or_else(|| RenderError::NoRestingPose {
             reason: "the mesh encloses no volume".into(),
         })?;
-    let faces = coplanar_faces(&hull, &hull_triangles, scale);
+    let faces = hull_faces(&hull, &hull_triangles);
     let mut poses: Vec<RestingPose> = faces
         .iter()
-        .filter(|face| face.holds(&hull, &centre, 1e-6 * scale))
-        .map(|face| RestingPose {
-            normal: face.normal,
-            offset: face.offset,
-            probability: face
-                .triangles
-                .iter()
-                .map(|t| solid_angle(&t.map(|i| hull[i as usize] - centre)))
-                .sum(),
+        .filter_map(|face| {
+            let clearance = face.clearance(&hull, &centre)?;
+            (clearance > 1e-6 * scale).then(|| RestingPose {
+                normal: face.normal,
+                offset: face.offset,
+                probability: face
+                    .triangles
+                    .iter()
+                    .map(|t| solid_angle(&t.map(|i| hull[i as usize] - centre)))
+                    .sum(),
+                tipping_angle: clearance.atan2(face.offset - face.normal.dot(&centre.coords)),
+            })
         })
         .collect();
     let total: f64 = poses.iter().map(|p| p.probability).sum();
@@ -146,7 +158,8 @@ fn centre_of_mass(
     }))
 }
 
-/// A planar face of the convex hull: the hull triangles sharing one plane.
+/// A face of the convex hull the object can stand on: the hull triangles whose normals lie
+/// within [`FACE_ANGLE_DEG`] of the largest one's, and the plane touching the hull across them.
 struct Face {
     normal: Unit<Vector3<f64>>,
     offset: f64,
@@ -154,65 +167,125 @@ struct Face {
 }
 
 impl Face {
-    /// Whether the projection of `centre` onto the face lies inside it, at least `margin` from
-    /// its boundary.
-    fn holds(&self, hull: &[Point3<f64>], centre: &Point3<f64>, margin: f64) -> bool {
+    /// The distance from the projection of `centre` onto the face's plane to the boundary of
+    /// the support polygon (the convex hull of the face's corners projected onto the plane),
+    /// `None` where the projection lies outside it.
+    fn clearance(&self, hull: &[Point3<f64>], centre: &Point3<f64>) -> Option<f64> {
         let n = self.normal.into_inner();
-        let p = centre - n * (n.dot(&centre.coords) - self.offset);
-        let inside = self.triangles.iter().any(|t| {
-            let [a, b, c] = t.map(|i| hull[i as usize]);
-            [(a, b), (b, c), (c, a)]
-                .iter()
-                .all(|(u, v)| (v - u).cross(&(p - u)).dot(&n) >= 0.0)
-        });
-        // Boundary edges are the directed edges without their reverse in the face.
-        let edges: Vec<(u32, u32)> = self
+        // An orthonormal basis of the plane.
+        let u = n
+            .cross(&if n.x.abs() < 0.9 {
+                Vector3::x()
+            } else {
+                Vector3::y()
+            })
+            .normalize();
+        let v = n.cross(&u);
+        let flat = |p: &Point3<f64>| (u.dot(&p.coords), v.dot(&p.coords));
+        let mut corners: Vec<(f64, f64)> = self
             .triangles
             .iter()
-            .flat_map(|&[a, b, c]| [(a, b), (b, c), (c, a)])
+            .flatten()
+            .map(|&i| flat(&hull[i as usize]))
             .collect();
-        let clear = edges
-            .iter()
-            .filter(|&&(u, v)| !edges.contains(&(v, u)))
-            .all(|&(u, v)| {
-                let (u, v) = (hull[u as usize], hull[v as usize]);
-                let along = (p - u).dot(&(v - u)) / (v - u).norm_squared();
-                (p - (u + (v - u) * along.clamp(0.0, 1.0))).norm() > margin
-            });
-        inside && clear
+        let polygon = convex_polygon(&mut corners);
+        let (px, py) = flat(centre);
+        let mut nearest = f64::INFINITY;
+        for (k, &(ax, ay)) in polygon.iter().enumerate() {
+            let (bx, by) = polygon[(k + 1) % polygon.len()];
+            let (ex, ey) = (bx - ax, by - ay);
+            let length = ex.hypot(ey);
+            // Counter-clockwise: the inside is on each edge's left.
+            let left = (ex * (py - ay) - ey * (px - ax)) / length;
+            if left < 0.0 {
+                return None;
+            }
+            nearest = nearest.min(left);
+        }
+        (polygon.len() >= 3).then_some(nearest)
     }
 }
 
-/// Merges hull triangles whose planes agree (normals within 1e-4, offsets within 1e-5 of the
-/// hull's size) into faces.
-fn coplanar_faces(hull: &[Point3<f64>], triangles: &[[u32; 3]], scale: f64) -> Vec<Face> {
+/// The convex hull of `points` (Andrew's monotone chain), counter-clockwise, without collinear
+/// points; `points` are sorted in place.
+fn convex_polygon(points: &mut [(f64, f64)]) -> Vec<(f64, f64)> {
+    points.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    let turn = |o: (f64, f64), a: (f64, f64), b: (f64, f64)| {
+        (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0)
+    };
+    let chain = |ordered: &mut dyn Iterator<Item = &(f64, f64)>| {
+        let mut chain: Vec<(f64, f64)> = Vec::new();
+        for &p in ordered {
+            while chain.len() >= 2 && turn(chain[chain.len() - 2], chain[chain.len() - 1], p) <= 0.0
+            {
+                chain.pop();
+            }
+            chain.push(p);
+        }
+        // Each chain's last point is the other's first.
+        chain.pop();
+        chain
+    };
+    let mut polygon = chain(&mut points.iter());
+    polygon.extend(chain(&mut points.iter().rev()));
+    polygon
+}
+
+/// Hull triangles whose outward normals lie within this many degrees of a face's largest
+/// triangle's belong to that face. A scan's flat side is a patchwork of hull triangles a degree
+/// or two apart; the facets of a tessellated can's side, 3.75° apart at 96 segments, stay
+/// faces of their own.
+pub const FACE_ANGLE_DEG: f64 = 3.0;
+
+/// Groups the hull triangles into faces: the largest triangle not yet in a face starts one, and
+/// every other triangle within [`FACE_ANGLE_DEG`] of its normal joins it; the face's normal is
+/// its triangles' mean (by area) and its plane touches the hull.
+fn hull_faces(hull: &[Point3<f64>], triangles: &[[u32; 3]]) -> Vec<Face> {
     let inside: Vector3<f64> =
         hull.iter().map(|p| p.coords).sum::<Vector3<f64>>() / hull.len() as f64;
-    let mut faces: Vec<Face> = Vec::new();
-    for &[i, j, k] in triangles {
-        let [a, b, c] = [i, j, k].map(|i| hull[i as usize]);
-        let Some(mut normal) = Unit::try_new((b - a).cross(&(c - a)), 1e-18) else {
+    // Each triangle wound outwards, with its normal scaled by twice its area.
+    let mut oriented: Vec<([u32; 3], Vector3<f64>)> = triangles
+        .iter()
+        .filter_map(|&[i, j, k]| {
+            let [a, b, c] = [i, j, k].map(|i| hull[i as usize]);
+            let area = (b - a).cross(&(c - a));
+            (area.norm() > 0.0).then(|| {
+                if area.dot(&(a.coords - inside)) < 0.0 {
+                    ([i, k, j], -area)
+                } else {
+                    ([i, j, k], area)
+                }
+            })
+        })
+        .collect();
+    oriented.sort_by(|a, b| b.1.norm_squared().total_cmp(&a.1.norm_squared()));
+    let cos = FACE_ANGLE_DEG.to_radians().cos();
+    let mut taken = vec![false; oriented.len()];
+    let mut faces = Vec::new();
+    for seed in 0..oriented.len() {
+        if taken[seed] {
             continue;
-        };
-        // Wind outwards whatever the hull's convention.
-        let mut triangle = [i, j, k];
-        if normal.dot(&(a.coords - inside)) < 0.0 {
-            normal = -normal;
-            triangle = [i, k, j];
         }
-        let triangle = &triangle;
-        let offset = normal.dot(&a.coords);
-        match faces.iter_mut().find(|f| {
-            (f.normal.into_inner() - normal.into_inner()).norm() < 1e-4
-                && (f.offset - offset).abs() < 1e-5 * scale
-        }) {
-            Some(face) => face.triangles.push(*triangle),
-            None => faces.push(Face {
-                normal,
-                offset,
-                triangles: vec![*triangle],
-            }),
+        let direction = oriented[seed].1.normalize();
+        let mut sum = Vector3::zeros();
+        let mut members = Vec::new();
+        for (k, (triangle, area)) in oriented.iter().enumerate() {
+            if !taken[k] && area.normalize().dot(&direction) >= cos {
+                taken[k] = true;
+                sum += area;
+                members.push(*triangle);
+            }
         }
+        let normal = Unit::new_normalize(sum);
+        let offset = hull
+            .iter()
+            .map(|p| normal.dot(&p.coords))
+            .fold(f64::NEG_INFINITY, f64::max);
+        faces.push(Face {
+            normal,
+            offset,
+            triangles: members,
+        });
     }
     faces
 }

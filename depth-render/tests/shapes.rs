@@ -195,6 +195,28 @@ fn a_box_rests_on_six_faces_three_up_to_symmetry() {
     assert!((placed * poses[0].normal.into_inner() + Vector3::z()).norm() < 1e-9);
 }
 
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    /// A box of half-extents `e` standing on the face whose normal is axis `i` tips over the
+    /// nearer of that face's edges: at `atan(min(e_j, e_k) / e_i)`.
+    #[test]
+    fn a_box_tips_over_its_nearer_edge(
+        extents in prop::array::uniform3(0.02f64..0.4),
+    ) {
+        let shape = Primitive::Cuboid { extents };
+        let poses = resting_poses(&shape.mesh().unwrap()).unwrap();
+        prop_assert_eq!(poses.len(), 6);
+        for pose in &poses {
+            let i = pose.normal.iamax();
+            let half: Vec<f64> = extents.iter().map(|e| e / 2.0).collect();
+            let across = (0..3).filter(|&j| j != i).map(|j| half[j]).fold(f64::INFINITY, f64::min);
+            let expected = (across / half[i]).atan();
+            prop_assert!((pose.tipping_angle - expected).abs() < 1e-6, "{pose:?}: {expected}");
+        }
+    }
+}
+
 #[test]
 fn a_can_rests_on_its_caps_and_side() {
     let shape = Primitive::Cylinder {
@@ -222,6 +244,59 @@ fn a_can_rests_on_its_caps_and_side() {
         .map(|p| p.probability)
         .sum();
     assert!(side > 0.5, "{side}");
+    // On a facet of its side it tips at half the angle between facets (3.75°); on a cap, at
+    // atan(apothem / half the height), to the f32 vertices' rounding.
+    let apothem = 0.04 * (std::f64::consts::PI / 48.0).cos();
+    for pose in &poses {
+        let expected = if pose.normal.z.abs() > 0.999 {
+            (apothem / 0.06).atan()
+        } else {
+            std::f64::consts::PI / 48.0
+        };
+        assert!(
+            (pose.tipping_angle - expected).abs() < 1e-6,
+            "{pose:?}: {expected}"
+        );
+    }
+}
+
+/// The YCB-Video scans of the cracker box and the sugar box (real scans, in the fixture of
+/// `examples/pseudo-label`) rest on all six sides of their bounding box, each found as one face
+/// though a scan's flat side is a patchwork of hull triangles: each tips at no more than a flat
+/// box of the scan's bounding box does (`atan` of half the nearer edge over half the height,
+/// plus a degree: the scan's centre of mass is not its box's centre), and at 5° or more
+/// (their rounded edges make the faces smaller than the box's).
+#[test]
+fn scanned_boxes_rest_on_all_six_sides() {
+    let fixture = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../examples/pseudo-label/tests/data/ycbv_real/models");
+    for id in [2, 3] {
+        let path = fixture.join(format!("obj_{id:06}.ply"));
+        let mesh = depth_render::load_mesh(&path, 0.001).unwrap().mesh;
+        let (low, high) = mesh.bounds();
+        let half = ((high - low) / 2.0).cast::<f64>();
+        let poses = resting_poses(&mesh).unwrap();
+        for axis in 0..3 {
+            for sign in [-1.0, 1.0] {
+                let mut direction = Vector3::zeros();
+                direction[axis] = sign;
+                let tipping = poses
+                    .iter()
+                    .filter(|p| p.normal.dot(&direction) > 10f64.to_radians().cos())
+                    .map(|p| p.tipping_angle.to_degrees())
+                    .fold(f64::NEG_INFINITY, f64::max);
+                let across = (0..3)
+                    .filter(|&j| j != axis)
+                    .map(|j| half[j])
+                    .fold(f64::INFINITY, f64::min);
+                let flat_box = (across / half[axis]).atan().to_degrees();
+                assert!(
+                    (5.0..=flat_box + 1.0).contains(&tipping),
+                    "obj {id}, axis {axis} {sign}: tips at {tipping:.1}°, a flat box at {flat_box:.1}°"
+                );
+            }
+        }
+    }
 }
 
 #[test]

@@ -310,6 +310,10 @@ fn bad_flags_and_missing_inputs_fail_with_one_line() {
         "--roll",
     );
     assert_fails(
+        &["synth", "--out", s(dir.path()), "--placement", "dropped"],
+        "dropped",
+    );
+    assert_fails(
         &["synth", "--out", s(dir.path()), "--objects", "teapot"],
         "teapot",
     );

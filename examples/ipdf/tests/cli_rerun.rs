@@ -50,6 +50,7 @@ fn a_synth_rerun_with_other_options_is_refused_and_an_identical_one_resumes() {
         (args("2", &["--elevation", "20", "80"]), "elevation_deg"),
         (args("2", &["--off-centre", "1"]), "off_centre"),
         (args("2", &["--roll", "30"]), "roll_deg"),
+        (args("2", &["--placement", "arranged"]), "placement"),
         (args("2", &["--randomize"]), "randomize"),
         (args("2", &["--randomize", "lights,camera"]), "randomize"),
     ] {

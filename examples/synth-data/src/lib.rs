@@ -47,7 +47,7 @@ mod synthesize;
 pub mod trials;
 
 pub use error::SynthError;
-pub use frame::{Frame, FrameRenderer, FrameStyle, ViewRange};
+pub use frame::{FIRM_TIPPING_DEG, Frame, FrameRenderer, FrameStyle, Placement, ViewRange};
 pub use objects::{ObjectKind, SynthObject};
 pub use randomize::Randomization;
 pub use synthesize::{SYNTH_OPTIONS_FILE, SynthOptions, SynthSummary, Variant, synthesize};

@@ -9,7 +9,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde_json::{Value, json};
 
-use crate::frame::{Frame, FrameRenderer, FrameStyle, ViewRange};
+use crate::frame::{Frame, FrameRenderer, FrameStyle, Placement, ViewRange};
 use crate::{Randomization, SynthError, SynthObject};
 use bop_dataset::{
     BopCamera, BopDataset, DatasetInfo, FileError, GtInfo, GtInstance, Intrinsics, ModelInfo,
@@ -175,6 +175,9 @@ fn split_options(objects: &[SynthObject], options: &SynthOptions) -> Value {
     }
     if options.view.roll_deg > 0.0 {
         value["roll_deg"] = json!(options.view.roll_deg);
+    }
+    if options.view.placement != Placement::Tossed {
+        value["placement"] = json!(options.view.placement.name());
     }
     if !options.randomization.is_none() {
         value["randomize"] = json!(options.randomization.names());

@@ -36,6 +36,7 @@ macro_rules! named {
 named!(
     synth_data::ObjectKind => synth_data::ObjectKind::description,
     synth_data::Variant,
+    synth_data::Placement,
     depth_render::SensorPreset => depth_render::SensorPreset::description,
     pseudo_label::Strategy,
     ipdf::training_data::LabelSource,

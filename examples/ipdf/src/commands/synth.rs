@@ -10,7 +10,7 @@ use depth_render::{MaskErrors, SensorPreset};
 use ipdf::progress::bar;
 use serde_json::json;
 use synth_data::{
-    ObjectKind, Randomization, SynthObject, SynthOptions, Variant, ViewRange, synthesize,
+    ObjectKind, Placement, Randomization, SynthObject, SynthOptions, Variant, ViewRange, synthesize,
 };
 
 /// Arguments of `ipdf synth`.
@@ -84,6 +84,12 @@ pub struct SynthArgs {
     /// Roll the camera about its line of sight by up to this many degrees either way.
     #[arg(long, default_value_t = 0.0)]
     pub roll: f64,
+    /// How the object comes to rest on the table: `tossed` (each face of its convex hull by
+    /// the chance of landing on it) or `arranged` (half the frames on a face drawn uniformly from
+    /// those it stands on firmly, as objects set down for a camera stand: boxes on their ends,
+    /// bottles upright).
+    #[arg(long, value_parser = choice::<Placement>(), default_value = "tossed")]
+    pub placement: Placement,
     /// Domain randomisation, drawn per frame: `all` (alone: `--randomize`) or a comma list of
     /// `lights` (direction, strength, colour, ambient, highlight), `backgrounds` (procedural
     /// table and background textures), `textures` (distractors and occluders in procedural
@@ -133,6 +139,7 @@ pub fn run(args: &SynthArgs, seed: u64) -> Result<serde_json::Value> {
             distance: (near, far),
             off_centre: args.off_centre,
             roll_deg: args.roll,
+            placement: args.placement,
             ..ViewRange::default()
         },
         distractors: args.distractors,

@@ -18,7 +18,9 @@ use ipdf_model::rotation::ImplicitPdf;
 use ipdf_model::{TRAIN_LOG, default_device};
 use pseudo_label::LabelReport;
 use serde::{Deserialize, Serialize};
-use synth_data::{Randomization, SynthObject, SynthOptions, Variant, ViewRange, synthesize};
+use synth_data::{
+    Placement, Randomization, SynthObject, SynthOptions, Variant, ViewRange, synthesize,
+};
 
 use super::config::{Plan, check_and_record};
 use super::report::LabelAccuracy;
@@ -182,6 +184,7 @@ fn synthesize_renders(
                 distance: request.distance,
                 off_centre: 1.0,
                 roll_deg: 30.0,
+                placement: Placement::Arranged,
                 ..ViewRange::default()
             },
             distractors: 2,
