@@ -37,7 +37,7 @@ pub struct ViewRange {
 pub enum Placement {
     /// Dropped at random: each face by the chance of landing on it (the solid angle it
     /// subtends at the centre of mass). A tall box seldom lands on its end (the YCB sugar box's
-    /// scan: 2% of the frames).
+    /// scan: 5% of the frames).
     #[default]
     Tossed,
     /// Set down by a person, as in scenes arranged for a camera: half the frames tossed, half on
