@@ -243,17 +243,18 @@ pub const FACE_ANGLE_DEG: f64 = 3.0;
 fn hull_faces(hull: &[Point3<f64>], triangles: &[[u32; 3]]) -> Vec<Face> {
     let inside: Vector3<f64> =
         hull.iter().map(|p| p.coords).sum::<Vector3<f64>>() / hull.len() as f64;
-    // Each triangle wound outwards, with its normal scaled by twice its area.
-    let mut oriented: Vec<([u32; 3], Vector3<f64>)> = triangles
+    // Each triangle wound outwards, with its normal scaled by twice its area, and its unit
+    // normal.
+    let mut oriented: Vec<([u32; 3], Vector3<f64>, Vector3<f64>)> = triangles
         .iter()
         .filter_map(|&[i, j, k]| {
             let [a, b, c] = [i, j, k].map(|i| hull[i as usize]);
             let area = (b - a).cross(&(c - a));
             (area.norm() > 0.0).then(|| {
                 if area.dot(&(a.coords - inside)) < 0.0 {
-                    ([i, k, j], -area)
+                    ([i, k, j], -area, -area.normalize())
                 } else {
-                    ([i, j, k], area)
+                    ([i, j, k], area, area.normalize())
                 }
             })
         })
@@ -266,11 +267,11 @@ fn hull_faces(hull: &[Point3<f64>], triangles: &[[u32; 3]]) -> Vec<Face> {
         if taken[seed] {
             continue;
         }
-        let direction = oriented[seed].1.normalize();
+        let direction = oriented[seed].2;
         let mut sum = Vector3::zeros();
         let mut members = Vec::new();
-        for (k, (triangle, area)) in oriented.iter().enumerate() {
-            if !taken[k] && area.normalize().dot(&direction) >= cos {
+        for (k, (triangle, area, unit)) in oriented.iter().enumerate() {
+            if !taken[k] && unit.dot(&direction) >= cos {
                 taken[k] = true;
                 sum += area;
                 members.push(*triangle);

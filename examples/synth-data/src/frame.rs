@@ -235,7 +235,7 @@ impl FrameRenderer {
                 normal: -Vector3::z_axis(),
                 offset: 0.8 * radius,
                 probability: 1.0,
-                // It stands on its 2 cm edge.
+                // Upright on its end, 2 cm thick.
                 tipping_angle: 0.01f64.atan2(0.8 * radius),
             },
             corners: box_corners(mesh),

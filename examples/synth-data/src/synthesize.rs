@@ -51,7 +51,7 @@ pub struct SynthOptions {
     pub variant: Variant,
     /// The camera (T-LESS-like by default) and the unit of the depth PNGs.
     pub camera: BopCamera,
-    /// Where the camera may be.
+    /// Where the camera may be, and how the object rests on the table.
     pub view: ViewRange,
     /// Distractor objects per frame.
     pub distractors: usize,
