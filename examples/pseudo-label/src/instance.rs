@@ -547,8 +547,8 @@ fn grid_search(
     options: &LabelOptions,
 ) -> Option<Candidate> {
     let grid = so3_grid::Grid::new(0).ok()?;
-    let sparse = downsample_voxel(&view.cloud, 3.0 * model.voxel).ok()?;
-    let cap = 3.0 * model.voxel;
+    let sparse = sparse_view(model, view)?;
+    let cap = SPARSE_VOXELS * model.voxel;
     let mut screened: Vec<(Isometry3<f64>, f64)> = grid
         .rotations()
         .par_iter()
@@ -562,20 +562,10 @@ fn grid_search(
         .collect();
     // Stable: ties keep grid order.
     screened.sort_by(|a, b| a.1.total_cmp(&b.1));
-    let mut kept: Vec<Isometry3<f64>> = Vec::with_capacity(GRID_KEEP);
-    for (pose, _) in screened {
-        if kept.len() == GRID_KEEP {
-            break;
-        }
-        if kept
-            .iter()
-            .all(|k| geodesic_distance(&k.rotation, &pose.rotation) > GRID_APART)
-        {
-            kept.push(pose);
-        }
-    }
+    let mut kept = merge_duplicates(screened, GRID_APART, |(pose, _)| pose);
+    kept.truncate(GRID_KEEP);
     kept.into_par_iter()
-        .filter_map(|pose| {
+        .filter_map(|(pose, _)| {
             let pose = refine_pose(model, view, &pose.inverse())?;
             Some(Candidate::compared(model, observation, pose, options))
         })
@@ -583,6 +573,15 @@ fn grid_search(
         .into_iter()
         .min_by(|a, b| a.score().total_cmp(&b.score()))
 }
+
+/// The observed points in voxels [`SPARSE_VOXELS`] times the model's (about a ninth of them):
+/// what [`grid_search`] and [`mistaken_poses`] screen poses on.
+fn sparse_view(model: &ObjectModel, view: &PreparedCloud) -> Option<PointCloud> {
+    downsample_voxel(&view.cloud, SPARSE_VOXELS * model.voxel).ok()
+}
+
+/// The voxel size of [`sparse_view`], in the model's voxels.
+const SPARSE_VOXELS: f32 = 3.0;
 
 /// The screened poses of [`grid_search`] refined and compared: on 100 renders of the YCB mug's
 /// scan, 12 labelled one instance fewer than the 72 full alignments did, 24 as many.
@@ -834,7 +833,9 @@ fn pose_set(
         });
     }
     let (candidates, best_comparison) = not_told_apart(candidates);
-    let merged = merge_duplicates(candidates, options.merge_angle_deg.to_radians());
+    let merged = merge_duplicates(candidates, options.merge_angle_deg.to_radians(), |c| {
+        &c.pose
+    });
     let rotations: Vec<UnitQuaternion<f64>> = merged.iter().map(|c| c.pose.rotation).collect();
     let mut chosen = spread(&rotations, options.labels);
     chosen.sort_unstable();
@@ -869,7 +870,7 @@ fn mistaken_poses(
     options: &LabelOptions,
     found: &Candidate,
 ) -> Vec<Candidate> {
-    let Ok(sparse) = downsample_voxel(&view.cloud, 3.0 * model.voxel) else {
+    let Some(sparse) = sparse_view(model, view) else {
         return Vec::new();
     };
     let screen = |start: &Isometry3<f64>, iterations: usize| {
@@ -925,15 +926,21 @@ const SCREEN_FITNESS: f64 = 0.7;
 /// `tests/data/ycbv_real` get the same instances right as when every turn is refined.
 const SCREEN_SLACK: f64 = 0.2;
 
-/// Poses (best score first) without those within `angle` radians of a better one.
-fn merge_duplicates(candidates: Vec<Candidate>, angle: f64) -> Vec<Candidate> {
-    let mut kept: Vec<Candidate> = Vec::with_capacity(candidates.len());
-    for candidate in candidates {
+/// Items (best first) without those whose pose (`pose_of`) turns within `angle` radians of a
+/// better one's.
+fn merge_duplicates<T>(
+    items: Vec<T>,
+    angle: f64,
+    pose_of: impl Fn(&T) -> &Isometry3<f64>,
+) -> Vec<T> {
+    let mut kept: Vec<T> = Vec::with_capacity(items.len());
+    for item in items {
+        let rotation = &pose_of(&item).rotation;
         if kept
             .iter()
-            .all(|k| geodesic_distance(&k.pose.rotation, &candidate.pose.rotation) > angle)
+            .all(|k| geodesic_distance(&pose_of(k).rotation, rotation) > angle)
         {
-            kept.push(candidate);
+            kept.push(item);
         }
     }
     kept
