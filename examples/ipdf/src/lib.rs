@@ -1,6 +1,7 @@
 //! The `ipdf` command line's library, for programs of your own: training data from BOP datasets
 //! ([`training_data`]), training runs ([`training`]), scores of rotation models, translation
-//! models and 6D poses side by side ([`eval`]), the record of a training run ([`run_info`]),
+//! models and 6D poses side by side ([`eval`]), a pose's translation fitted to a depth image
+//! ([`depth_fit`]), the record of a training run ([`run_info`]),
 //! the whole pipeline of `ipdf pipeline` ([`pipeline`]), figures ([`plots`]), `.npy` output
 //! ([`npy`]), point-cloud files ([`cloud_file`]), progress bars and the process allocator.
 //! Datasets, synthetic data and labelling are crates of their own (`bop-dataset`, `synth-data`, `pseudo-label`, none of which
@@ -24,6 +25,7 @@
 //! ```
 pub mod allocator;
 pub mod cloud_file;
+pub mod depth_fit;
 mod error;
 pub mod eval;
 pub mod npy;

@@ -269,6 +269,54 @@ fn pose_runs_train_score_and_predict_translations() {
         &predict_args(&run, &rgb, &mask, &out, &extra),
         &format!("{}: fx", camera.display()),
     );
+    // With the image's depth (`--camera` gives its units), the most likely translation is also
+    // fitted to it inside the box's visible mask: on the line of sight of the model's, and,
+    // whatever the rotation, within the box's diameter of the truth.
+    let gt = &read_json(&scene.join("scene_gt.json"))["0"];
+    let index = gt
+        .as_array()
+        .unwrap()
+        .iter()
+        .position(|instance| instance["obj_id"] == *box_id)
+        .unwrap();
+    let box_mask = scene.join(format!("mask_visib/000000_{index:06}.png"));
+    let depth_scale = &read_json(&scene.join("scene_camera.json"))["0"]["depth_scale"];
+    let depth_camera = dir.path().join("depth_camera.json");
+    let camera_json = serde_json::json!({"cam_K": k, "depth_scale": depth_scale});
+    std::fs::write(&depth_camera, camera_json.to_string()).unwrap();
+    let depth = scene.join("depth/000000.png");
+    let with_depth = [
+        "--level",
+        "1",
+        "--camera",
+        s(&depth_camera),
+        "--depth",
+        s(&depth),
+    ];
+    let fitted = ipdf_json(&predict_args(&run, &rgb, &box_mask, &out, &with_depth));
+    let vector = |value: &Value| nalgebra::Vector3::from_fn(|i, _| finite(&value[i]));
+    let (model_t, fitted_t) = (
+        vector(&fitted["argmax"]["cam_t_m2c"]),
+        vector(&fitted["argmax"]["fitted_cam_t_m2c"]),
+    );
+    let turn = model_t.normalize().cross(&fitted_t.normalize()).norm();
+    assert!(turn < 1e-9, "{fitted}");
+    let truth = vector(&gt[index]["cam_t_m2c"]);
+    let models_info = read_json(&data.join("models/models_info.json"));
+    let diameter = finite(&models_info[box_id.to_string()]["diameter"]);
+    assert!(
+        (fitted_t - truth).norm() < diameter,
+        "{fitted} against {truth}"
+    );
+    // A translation run has no rotation to render the mesh at; a box has no mask to fit in.
+    assert_fails(
+        &predict_args(&translation_run, &rgb, &box_mask, &out, &with_depth),
+        "is a translation run",
+    );
+    let mut boxed = vec!["predict", "--checkpoint", s(&run), "--rgb", s(&rgb)];
+    boxed.extend(["--bbox", "10,10,40,40", "--out", s(&out)]);
+    boxed.extend(with_depth);
+    assert_fails(&boxed, "--mask");
     let only = predict(&translation_run, &intrinsics);
     assert_eq!(only["argmax"]["cam_t_m2c"], *t);
     assert!(only.get("level").is_none());

@@ -98,6 +98,8 @@ fn the_benchmark_runs_and_its_table_holds_every_instance_of_the_object() {
             "llh",
             "translation_error_mm",
             "add_mm",
+            "fitted_translation_error_mm",
+            "fitted_add_mm",
         ] {
             assert_eq!(number(row, key), number(own, key), "{key}");
         }
@@ -121,6 +123,18 @@ fn the_benchmark_runs_and_its_table_holds_every_instance_of_the_object() {
         (
             "add_accuracy",
             share(&|r| number(r, "add_mm") < 0.1 * diameter),
+        ),
+        (
+            "fitted_add_accuracy",
+            share(&|r| number(r, "fitted_add_mm") < 0.1 * diameter),
+        ),
+        (
+            "translation_over_50mm",
+            n * share(&|r| number(r, "translation_error_mm") > 50.0),
+        ),
+        (
+            "fitted_translation_over_50mm",
+            n * share(&|r| number(r, "fitted_translation_error_mm") > 50.0),
         ),
     ];
     for (key, expected) in checks {

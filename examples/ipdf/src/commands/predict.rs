@@ -1,20 +1,27 @@
 //! `ipdf predict`: the distribution over SO(3) of a trained model for one object in one image
 //! (`.npy`, in the cell order of `ipdf grid`), and its most likely rotation (JSON); for a
 //! translation model, or a pose run (a rotation model with one in `translation/`), the
-//! distribution over translations too and the most likely translation (`cam_t_m2c`, mm).
+//! distribution over translations too and the most likely translation (`cam_t_m2c`, mm); with
+//! the image's depth, that translation fitted to it (`fitted_cam_t_m2c`, mm).
 use std::path::{Path, PathBuf};
 
 use super::check_extension;
 use anyhow::{Context, Result, bail};
-use bop_dataset::{BopCamera, Intrinsics, camera_from_json, read_json, write_json};
+use bop_dataset::{
+    BopCamera, Intrinsics, camera_from_json, read_depth, read_json, read_mask, write_json,
+};
+use depth_render::{PinholeCamera, Scene, load_mesh};
+use ipdf::depth_fit::{MIN_PIXELS, fit_translation};
 use ipdf::eval::translation::{
     self, is_translation_run, pose_translation_dir, pose_translation_model,
 };
 use ipdf::npy::write_f32;
+use ipdf::run_info::RunInfo;
 use ipdf::training_data::{CropError, FileCrop, crop_file_box, crop_files, crop_tensor};
 use ipdf_model::rotation::{ArgmaxOptions, ImplicitPdf, Predictor};
 use ipdf_model::translation::{CropGeometry, TranslationPdf};
 use ipdf_model::{ImageBox, default_device};
+use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 use serde_json::{Value, json};
 use so3_grid::{Grid, rotation_to_matrix, rotation_to_wxyz};
 
@@ -44,6 +51,12 @@ pub struct PredictArgs {
     /// must be the image's).
     #[arg(long, conflicts_with = "intrinsics")]
     pub camera: Option<PathBuf>,
+    /// The image's depth (BOP's 16-bit PNG, in the units of `--camera`'s `depth_scale`;
+    /// millimetres with `--intrinsics`): a pose run's most likely translation is also fitted to
+    /// it inside `--mask`, along its line of sight, with the mesh of the run's dataset
+    /// (`"fitted_cam_t_m2c"`, mm; the library's `ipdf::depth_fit`).
+    #[arg(long)]
+    pub depth: Option<PathBuf>,
     /// Grid level of the rotation distribution (4: 294,912 rotations).
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(0..=5))]
     pub level: u8,
@@ -56,7 +69,7 @@ pub struct PredictArgs {
 }
 
 /// Runs `ipdf predict`; returns `{"argmax": {"quaternion_wxyz", "cam_R_m2c", "cam_t_m2c",
-/// "score"}, "level", "cells", "densest": [{"quaternion_wxyz", "probability"}, …],
+/// "fitted_cam_t_m2c", "score"}, "level", "cells", "densest": [{"quaternion_wxyz", "probability"}, …],
 /// "translation": {"cells", "distribution", "score"}}` with the parts the run's models give.
 pub fn run(args: &PredictArgs) -> Result<Value> {
     check_extension(
@@ -65,6 +78,9 @@ pub fn run(args: &PredictArgs) -> Result<Value> {
         "npy",
         "the distribution (a NumPy array; the most likely pose goes beside it as .json)",
     )?;
+    if args.depth.is_some() && args.mask.is_none() {
+        bail!("--depth needs --mask: the object's own pixels (a box holds the background too)");
+    }
     let translation_only = is_translation_run(&args.checkpoint)?;
     let rotation = (!translation_only)
         .then(|| ImplicitPdf::load(&args.checkpoint, default_device()))
@@ -95,14 +111,35 @@ pub fn run(args: &PredictArgs) -> Result<Value> {
         .as_ref()
         .map(|_| crop_geometry(&crop, args))
         .transpose()?;
+    let depth_view = args
+        .depth
+        .as_ref()
+        .map(|depth| depth_view(depth, &crop, args, rotation.is_none()))
+        .transpose()?;
     let mut result = json!({});
+    let mut most_likely = None;
     if let Some(model) = &rotation {
-        result = predict_rotation(model, &crop, args)?;
+        let (value, best) = predict_rotation(model, &crop, args)?;
+        result = value;
+        most_likely = Some(best);
     }
     if let (Some(model), Some(geometry)) = (&translation, &geometry) {
-        let (argmax, summary) = predict_translation(model, &crop, geometry, args)?;
-        result["argmax"]["cam_t_m2c"] = argmax;
+        let (t, summary) = predict_translation(model, &crop, geometry, args)?;
+        result["argmax"]["cam_t_m2c"] = json!([t.x, t.y, t.z]);
         result["translation"] = summary;
+        if let (Some(view), Some(rotation)) = (&depth_view, most_likely) {
+            let pose = Isometry3::from_parts((t / 1000.0).into(), rotation);
+            match view.fit(&pose) {
+                Some(fitted) => {
+                    let f = fitted.translation.vector * 1000.0;
+                    result["argmax"]["fitted_cam_t_m2c"] = json!([f.x, f.y, f.z]);
+                }
+                None => eprintln!(
+                    "ipdf predict: fewer than {MIN_PIXELS} pixels of --mask read a depth where \
+                     the mesh at the most likely pose shows its surface: no fitted translation"
+                ),
+            }
+        }
     }
     write_json(&args.out.with_extension("json"), &result)?;
     if let Some(dir) = skipped {
@@ -115,7 +152,13 @@ pub fn run(args: &PredictArgs) -> Result<Value> {
     Ok(result)
 }
 
-fn predict_rotation(model: &ImplicitPdf, crop: &FileCrop, args: &PredictArgs) -> Result<Value> {
+/// The rotation distribution written to `--out`, the JSON of the most likely rotation and the
+/// densest cells, and the most likely rotation.
+fn predict_rotation(
+    model: &ImplicitPdf,
+    crop: &FileCrop,
+    args: &PredictArgs,
+) -> Result<(Value, UnitQuaternion<f64>)> {
     let crop = crop_tensor(&crop.pixels, model.config().input_size as usize);
     let mut predictor = Predictor::new(model);
     // The encoder runs once: the grid's masses and the argmax share the crop's image term.
@@ -136,7 +179,7 @@ fn predict_rotation(model: &ImplicitPdf, crop: &FileCrop, args: &PredictArgs) ->
             Ok(json!({"quaternion_wxyz": rotation_to_wxyz(&rotation), "probability": masses[i]}))
         })
         .collect::<Result<Vec<_>>>()?;
-    Ok(json!({
+    let value = json!({
         "argmax": {
             "quaternion_wxyz": rotation_to_wxyz(&best.rotation),
             "cam_R_m2c": rotation_to_matrix(&best.rotation),
@@ -145,7 +188,78 @@ fn predict_rotation(model: &ImplicitPdf, crop: &FileCrop, args: &PredictArgs) ->
         "level": args.level,
         "cells": masses.len(),
         "densest": densest,
-    }))
+    });
+    Ok((value, best.rotation))
+}
+
+/// The depth image of `--depth`, the mask of `--mask`, the camera and the mesh of the run's
+/// dataset, read and checked: what fitting the most likely translation to depth needs.
+struct DepthView {
+    depth: Vec<f32>,
+    mask: Vec<bool>,
+    camera: PinholeCamera,
+    scene: Scene,
+}
+
+impl DepthView {
+    /// `pose` (metres) fitted to the depth ([`fit_translation`]).
+    fn fit(&self, pose: &Isometry3<f64>) -> Option<Isometry3<f64>> {
+        fit_translation(&self.scene, &self.camera, &self.depth, &self.mask, pose)
+    }
+}
+
+/// Reads and checks what `--depth` needs: a pose run, the camera, a depth image and a mask of
+/// the colour image's size, and the run's mesh.
+fn depth_view(
+    path: &Path,
+    crop: &FileCrop,
+    args: &PredictArgs,
+    translation_run: bool,
+) -> Result<DepthView> {
+    if translation_run {
+        bail!(
+            "--depth: {} is a translation run; fitting its translation to depth needs a pose \
+             run's rotation",
+            args.checkpoint.display()
+        );
+    }
+    let (intrinsics, _) = camera_intrinsics(crop, args)?;
+    let depth = read_depth(path, intrinsics.depth_scale)?;
+    let mask_path = args.mask.as_deref().context("--depth needs --mask")?;
+    let mask = read_mask(mask_path)?;
+    let size = (crop.width as u32, crop.height as u32);
+    for (file, width, height) in [
+        (path, depth.width, depth.height),
+        (mask_path, mask.width, mask.height),
+    ] {
+        if (width, height) != size {
+            bail!(
+                "{}: {width} × {height} pixels, but --rgb is {} × {}",
+                file.display(),
+                size.0,
+                size.1
+            );
+        }
+    }
+    let camera = PinholeCamera::new(
+        intrinsics.fx,
+        intrinsics.fy,
+        intrinsics.cx,
+        intrinsics.cy,
+        size.0,
+        size.1,
+    )?;
+    let info = RunInfo::read(&args.checkpoint)?;
+    let mesh_path = info.dataset(None)?.model_path(info.obj_id);
+    let mesh = load_mesh(&mesh_path, 0.001)
+        .with_context(|| format!("{}: the run's mesh", mesh_path.display()))?
+        .mesh;
+    Ok(DepthView {
+        depth: depth.pixels,
+        mask: mask.pixels,
+        camera,
+        scene: Scene::new(std::slice::from_ref(&mesh)),
+    })
 }
 
 /// The crop of `rgb` in the box `--bbox x,y,w,h` (checked against the image).
@@ -171,7 +285,15 @@ fn box_crop(rgb: &Path, values: &[f64], size: usize) -> Result<FileCrop> {
 
 /// Where the crop lies in the image of `--intrinsics` or `--camera` (checked).
 fn crop_geometry(crop: &FileCrop, args: &PredictArgs) -> Result<CropGeometry> {
-    let (intrinsics, source) = match (&args.camera, args.intrinsics.as_deref()) {
+    let (intrinsics, source) = camera_intrinsics(crop, args)?;
+    let geometry = crop.geometry(&intrinsics);
+    geometry.validate(0).with_context(|| source)?;
+    Ok(geometry)
+}
+
+/// The intrinsics of `--camera` or `--intrinsics`, and which flag gave them.
+fn camera_intrinsics(crop: &FileCrop, args: &PredictArgs) -> Result<(Intrinsics, String)> {
+    Ok(match (&args.camera, args.intrinsics.as_deref()) {
         (Some(path), _) => (camera_file(path, crop)?, path.display().to_string()),
         (None, Some(values)) => {
             let i = intrinsics_flag(values)?;
@@ -183,10 +305,7 @@ fn crop_geometry(crop: &FileCrop, args: &PredictArgs) -> Result<CropGeometry> {
              (the camera's cam_K)",
             args.checkpoint.display()
         ),
-    };
-    let geometry = crop.geometry(&intrinsics);
-    geometry.validate(0).with_context(|| source)?;
-    Ok(geometry)
+    })
 }
 
 /// The intrinsics of `--intrinsics fx,fy,cx,cy`.
@@ -244,7 +363,7 @@ fn predict_translation(
     crop: &FileCrop,
     geometry: &CropGeometry,
     args: &PredictArgs,
-) -> Result<(Value, Value)> {
+) -> Result<(Vector3<f64>, Value)> {
     let image = crop_tensor(&crop.pixels, model.config().network.input_size as usize);
     let prediction = translation::predict_translation(model, &image, geometry)?;
     let (centres, distribution) = (&prediction.centres, &prediction.distribution);
@@ -259,7 +378,7 @@ fn predict_translation(
     let best = prediction.argmax;
     let t = best.translation;
     Ok((
-        json!([t.x, t.y, t.z]),
+        t,
         json!({
             "cam_t_m2c": [t.x, t.y, t.z],
             "score": best.score,

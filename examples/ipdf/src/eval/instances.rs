@@ -65,6 +65,14 @@ pub struct InstanceScore {
     /// ADD, or ADD-S for a symmetric object, of the most likely pose (mm), for pose runs.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub add_mm: Option<f64>,
+    /// Distance from the truth of the most likely pose's translation fitted to the frame's
+    /// depth inside the instance's visible mask (mm; [`crate::depth_fit`]), for pose runs on
+    /// frames with depth and masks.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fitted_translation_error_mm: Option<f64>,
+    /// ADD(-S) of the most likely rotation with that fitted translation (mm).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fitted_add_mm: Option<f64>,
 }
 
 /// The scores over all instances: `ipdf eval`'s `"accuracy"`.
@@ -98,6 +106,14 @@ pub struct Accuracy {
     /// Median translation error (mm), for pose runs.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub median_translation_error_mm: Option<f64>,
+    /// Median error of the translations fitted to the frames' depth (mm), over the instances
+    /// that have one, for pose runs on frames with depth and masks.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub median_fitted_translation_error_mm: Option<f64>,
+    /// Share of those instances under 10% of the diameter in ADD(-S) with the fitted
+    /// translation.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fitted_add_accuracy: Option<f64>,
 }
 
 /// The most likely translations of a pose run and the object ADD(-S) is measured on.
@@ -106,6 +122,9 @@ pub struct PoseParts<'a> {
     pub translations: &'a [Vector3<f64>],
     /// The object's surface points, diameter and symmetry.
     pub object: &'a ObjectModel,
+    /// Each crop's most likely pose's translation fitted to its frame's depth (mm), where it
+    /// could be (empty: none fitted).
+    pub fitted: &'a [Option<Vector3<f64>>],
 }
 
 /// Each instance's scores and their summary, from each crop's scores and most likely rotation
@@ -128,7 +147,20 @@ pub fn score_instances(
             .map(|truth| geodesic_distance(truth, &rotations[i]))
             .fold(f64::INFINITY, f64::min);
         let estimate = pose.map(|p| Isometry3::from_parts(p.translations[i].into(), rotations[i]));
+        let fitted = pose.and_then(|p| {
+            let t = p.fitted.get(i).copied().flatten()?;
+            Some(Isometry3::from_parts(t.into(), rotations[i]))
+        });
         let truth = &truth_poses[i];
+        let add_of = |e: Isometry3<f64>| {
+            pose.map(|p| {
+                if p.object.symmetric {
+                    add_s(&p.object.points, &e, truth)
+                } else {
+                    add(&p.object.points, &e, truth)
+                }
+            })
+        };
         rows.push(InstanceScore {
             scene_id: at.scene_id,
             im_id: at.im_id,
@@ -141,13 +173,10 @@ pub fn score_instances(
             recall_maad_deg: evaluation.recall_maad_deg[i],
             translation_error_mm: estimate
                 .map(|e| translation_error(&e.translation.vector, &truth.translation.vector)),
-            add_mm: pose.zip(estimate).map(|(p, e)| {
-                if p.object.symmetric {
-                    add_s(&p.object.points, &e, truth)
-                } else {
-                    add(&p.object.points, &e, truth)
-                }
-            }),
+            add_mm: estimate.and_then(add_of),
+            fitted_translation_error_mm: fitted
+                .map(|e| translation_error(&e.translation.vector, &truth.translation.vector)),
+            fitted_add_mm: fitted.and_then(add_of),
         });
     }
     let accuracy = summarise(&rows, pose, min_visib);
@@ -161,6 +190,11 @@ fn summarise(rows: &[InstanceScore], pose: Option<&PoseParts>, min_visib: f64) -
     let [low, high] = ACCURACY_THRESHOLDS_DEG;
     let mut errors: Vec<f64> = rows.iter().map(|r| r.rotation_error_deg).collect();
     let mut translations: Vec<f64> = rows.iter().filter_map(|r| r.translation_error_mm).collect();
+    let mut fitted: Vec<f64> = rows
+        .iter()
+        .filter_map(|r| r.fitted_translation_error_mm)
+        .collect();
+    let fitted_rows = fitted.len().max(1) as f64;
     Accuracy {
         instances: rows.len(),
         min_visib,
@@ -180,6 +214,14 @@ fn summarise(rows: &[InstanceScore], pose: Option<&PoseParts>, min_visib: f64) -
             })
         }),
         median_translation_error_mm: pose.map(|_| median(&mut translations)),
+        fitted_add_accuracy: pose.filter(|_| !fitted.is_empty()).map(|p| {
+            let under = |r: &&InstanceScore| {
+                r.fitted_add_mm
+                    .is_some_and(|d| d < ADD_FRACTION * p.object.diameter_mm)
+            };
+            rows.iter().filter(under).count() as f64 / fitted_rows
+        }),
+        median_fitted_translation_error_mm: (!fitted.is_empty()).then(|| median(&mut fitted)),
     }
 }
 
@@ -196,9 +238,17 @@ pub fn markdown(what: &str, rows: &[InstanceScore], accuracy: &Accuracy) -> Stri
         "## {what}\n\n| scene | image | instance | visible | rotation error (°) | VSD | LLH | MAAD (°) | Recall MAAD (°) |"
     );
     let mut rule = String::from("|---|---|---|---|---|---|---|---|---|");
+    let fitted = accuracy.median_fitted_translation_error_mm.is_some();
     if let Some(metric) = pose {
         let _ = write!(out, " translation error (mm) | {metric} (mm) |");
         rule.push_str("---|---|");
+        if fitted {
+            let _ = write!(
+                out,
+                " translation fitted to depth: error (mm) | its {metric} (mm) |"
+            );
+            rule.push_str("---|---|");
+        }
     }
     let _ = writeln!(out, "\n{rule}");
     for r in rows {
@@ -220,6 +270,10 @@ pub fn markdown(what: &str, rows: &[InstanceScore], accuracy: &Accuracy) -> Stri
         if pose.is_some() {
             let mm = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.1}"));
             let _ = write!(out, " {} | {} |", mm(r.translation_error_mm), mm(r.add_mm));
+            if fitted {
+                let (t, add) = (r.fitted_translation_error_mm, r.fitted_add_mm);
+                let _ = write!(out, " {} | {} |", mm(t), mm(add));
+            }
         }
         out.push('\n');
     }
@@ -249,6 +303,18 @@ pub fn markdown(what: &str, rows: &[InstanceScore], accuracy: &Accuracy) -> Stri
         let _ = write!(
             out,
             "; {metric} under 10% of the diameter {:.0}%, median translation error {t:.1} mm",
+            100.0 * share
+        );
+    }
+    if let (Some(metric), Some(share), Some(t)) = (
+        pose,
+        a.fitted_add_accuracy,
+        a.median_fitted_translation_error_mm,
+    ) {
+        let _ = write!(
+            out,
+            "; with the translation fitted to depth, {metric} under 10% of the diameter {:.0}%, \
+             median translation error {t:.1} mm",
             100.0 * share
         );
     }

@@ -13,6 +13,7 @@ use bop_dataset::{BopDataset, Progress, RotationRepairs};
 use ipdf_model::rotation::{ImplicitPdf, UNDER_RESOLUTION_LIMIT};
 use ipdf_model::translation::TranslationPdf;
 use ipdf_model::{RefineOptions, default_device};
+use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};
 
 use crate::Error;
@@ -289,9 +290,27 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
         None => (None, None, None),
     };
     let (instances, accuracy) = if request.per_instance {
+        let fitted = match &poses {
+            Some((translations, _)) => {
+                let estimates: Vec<Isometry3<f64>> = translations
+                    .iter()
+                    .zip(&evaluation.argmax)
+                    .map(|(t, r)| Isometry3::from_parts((*t).into(), *r))
+                    .collect();
+                surface::depth_fitted_translations(
+                    &dataset,
+                    &request.split,
+                    info.obj_id,
+                    &examples,
+                    &estimates,
+                )?
+            }
+            None => Vec::new(),
+        };
         let pose = poses.as_ref().map(|(translations, object)| PoseParts {
             translations,
             object,
+            fitted: &fitted,
         });
         let vsd = surface::rotation_vsd(
             &dataset,

@@ -4,16 +4,23 @@
 //! A pose whose VSD to the truth is under 0.3 is one the view cannot tell from the truth (a box
 //! whose printed sides alone tell its half turns apart, a mug whose handle is hidden), so a
 //! rotation within 15° of the truth's symmetries *or* under that VSD counts as a true pose.
+//! Where the frame has depth, a most likely pose's translation fitted to it
+//! ([`depth_fitted_translations`]) is scored beside the translation model's.
 use std::collections::BTreeMap;
 use std::collections::btree_map::Entry;
 
-use bop_dataset::{BopDataset, FileError, Intrinsics, read_depth, read_scene_camera};
-use depth_render::{Instance, Scene, Window, visible_surface_discrepancy};
-use nalgebra::{Isometry3, UnitQuaternion};
+use std::path::PathBuf;
+
+use bop_dataset::{
+    BopDataset, FileError, Image, Intrinsics, read_depth, read_mask, read_scene_camera,
+};
+use depth_render::{Instance, PinholeCamera, Scene, Window, visible_surface_discrepancy};
+use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 
 use crate::Error;
+use crate::depth_fit::fit_translation;
 use crate::eval::object_mesh;
-use crate::training_data::Examples;
+use crate::training_data::{Examples, InstanceRef};
 
 /// BOP's visibility tolerance δ (metres).
 pub const VSD_DELTA_M: f32 = 0.015;
@@ -41,16 +48,121 @@ pub fn rotation_vsd(
     let (low, high) = mesh.bounds();
     let centre = nalgebra::center(&low, &high).cast::<f64>();
     let scene_of_mesh = Scene::new(std::slice::from_ref(&mesh));
-    let mut cameras: BTreeMap<u32, BTreeMap<u32, Intrinsics>> = BTreeMap::new();
+    let mut frames = FrameDepths::new(dataset, split);
     let mut scores = Vec::with_capacity(truths.len());
     for ((at, truth), rotation) in examples.instances.iter().zip(truths).zip(rotations) {
-        let scene = dataset.scene(split, at.scene_id);
-        let depth_path = scene.depth_path(at.im_id);
-        if !depth_path.exists() {
+        let Some(frame) = frames.load(at)? else {
             scores.push(None);
             continue;
+        };
+        let render = |pose: Isometry3<f64>| -> Result<Vec<f32>, Error> {
+            let window = Window::full(&frame.camera);
+            Ok(scene_of_mesh
+                .render(&frame.camera, &[Instance::new(0, pose)], window)
+                .map_err(|e| FileError::new(&frame.path, "render", e.to_string()))?
+                .depth)
+        };
+        let truth = in_metres(truth);
+        let at_centre = truth.transform_point(&centre) - rotation.transform_point(&centre);
+        let truth_depth = render(truth)?;
+        let estimate_depth = render(Isometry3::from_parts(at_centre.into(), *rotation))?;
+        scores.push(
+            visible_surface_discrepancy(
+                &frame.depth.pixels,
+                &estimate_depth,
+                &truth_depth,
+                VSD_DELTA_M,
+                VSD_TAU_M,
+            )
+            .map(f64::from),
+        );
+    }
+    Ok(scores)
+}
+
+/// Each instance's pose in `poses` (translation in mm) with its translation fitted to the
+/// depth image of its frame in `split` of `dataset` inside the instance's visible mask
+/// ([`crate::depth_fit::fit_translation`], object `obj_id`'s mesh), in mm. `None` for an
+/// instance whose frame has no depth image or no mask, or too few readings in it.
+pub fn depth_fitted_translations(
+    dataset: &BopDataset,
+    split: &str,
+    obj_id: u32,
+    examples: &Examples,
+    poses: &[Isometry3<f64>],
+) -> Result<Vec<Option<Vector3<f64>>>, Error> {
+    let mesh = object_mesh(dataset, obj_id, 0.001)?;
+    let scene_of_mesh = Scene::new(std::slice::from_ref(&mesh));
+    let mut frames = FrameDepths::new(dataset, split);
+    let mut fitted = Vec::with_capacity(poses.len());
+    for (at, pose) in examples.instances.iter().zip(poses) {
+        let mask_path = dataset
+            .scene(split, at.scene_id)
+            .visible_mask_path(at.im_id, at.instance);
+        let frame = match frames.load(at)? {
+            Some(frame) if mask_path.exists() => frame,
+            _ => {
+                fitted.push(None);
+                continue;
+            }
+        };
+        let mask = read_mask(&mask_path)?;
+        if (mask.width, mask.height) != (frame.depth.width, frame.depth.height) {
+            let reason = format!(
+                "{}×{} pixels, its depth image {}×{}",
+                mask.width, mask.height, frame.depth.width, frame.depth.height
+            );
+            return Err(FileError::new(&mask_path, "size", reason).into());
         }
-        let scene_cameras = match cameras.entry(at.scene_id) {
+        let pose = fit_translation(
+            &scene_of_mesh,
+            &frame.camera,
+            &frame.depth.pixels,
+            &mask.pixels,
+            &in_metres(pose),
+        );
+        fitted.push(pose.map(|p| p.translation.vector * 1000.0));
+    }
+    Ok(fitted)
+}
+
+/// A pose whose translation is in mm, in metres.
+fn in_metres(pose: &Isometry3<f64>) -> Isometry3<f64> {
+    Isometry3::from_parts((pose.translation.vector / 1000.0).into(), pose.rotation)
+}
+
+/// A frame's depth image (metres) and camera.
+struct FrameDepth {
+    depth: Image<f32>,
+    camera: PinholeCamera,
+    /// The depth image's file.
+    path: PathBuf,
+}
+
+/// The depth images and cameras of a split's frames, each scene's `scene_camera.json` read once.
+struct FrameDepths<'a> {
+    dataset: &'a BopDataset,
+    split: &'a str,
+    cameras: BTreeMap<u32, BTreeMap<u32, Intrinsics>>,
+}
+
+impl<'a> FrameDepths<'a> {
+    fn new(dataset: &'a BopDataset, split: &'a str) -> Self {
+        Self {
+            dataset,
+            split,
+            cameras: BTreeMap::new(),
+        }
+    }
+
+    /// The depth image and camera of `at`'s frame; `None` where it has no depth image.
+    fn load(&mut self, at: &InstanceRef) -> Result<Option<FrameDepth>, Error> {
+        let scene = self.dataset.scene(self.split, at.scene_id);
+        let path = scene.depth_path(at.im_id);
+        if !path.exists() {
+            return Ok(None);
+        }
+        let scene_cameras = match self.cameras.entry(at.scene_id) {
             Entry::Occupied(entry) => entry.into_mut(),
             Entry::Vacant(entry) => entry.insert(read_scene_camera(&scene.camera_path())?),
         };
@@ -61,35 +173,17 @@ pub fn rotation_vsd(
                 "no camera for this image",
             )
         })?;
-        let observed = read_depth(&depth_path, intrinsics.depth_scale)?;
+        let depth = read_depth(&path, intrinsics.depth_scale)?;
         let camera = intrinsics
-            .camera(observed.width, observed.height)
+            .camera(depth.width, depth.height)
             .map_err(|e| FileError::new(&scene.camera_path(), at.im_id.to_string(), e.to_string()))?
             .camera;
-        let render = |pose: Isometry3<f64>| -> Result<Vec<f32>, Error> {
-            let window = Window::full(&camera);
-            Ok(scene_of_mesh
-                .render(&camera, &[Instance::new(0, pose)], window)
-                .map_err(|e| FileError::new(&depth_path, "render", e.to_string()))?
-                .depth)
-        };
-        let truth =
-            Isometry3::from_parts((truth.translation.vector / 1000.0).into(), truth.rotation);
-        let at_centre = truth.transform_point(&centre) - rotation.transform_point(&centre);
-        let truth_depth = render(truth)?;
-        let estimate_depth = render(Isometry3::from_parts(at_centre.into(), *rotation))?;
-        scores.push(
-            visible_surface_discrepancy(
-                &observed.pixels,
-                &estimate_depth,
-                &truth_depth,
-                VSD_DELTA_M,
-                VSD_TAU_M,
-            )
-            .map(f64::from),
-        );
+        Ok(Some(FrameDepth {
+            depth,
+            camera,
+            path,
+        }))
     }
-    Ok(scores)
 }
 
 #[cfg(test)]

@@ -428,6 +428,13 @@ impl MeshReport {
         if let Some(t) = &r.translation {
             out += &format!(", translation error median {:.1} mm", t.median_error_mm);
         }
+        if let Some(t) = r
+            .accuracy
+            .as_ref()
+            .and_then(|a| a.median_fitted_translation_error_mm)
+        {
+            out += &format!(" ({t:.1} mm fitted to the renders' depth)");
+        }
         out += &format!(" ({against}).\n\n");
         if let Some(real) = &self.real
             && let Some(accuracy) = &real.accuracy
