@@ -27,13 +27,16 @@
 //! assert!((fitted.translation.vector - truth.translation.vector).norm() < 0.001);
 //! # Ok::<(), depth_render::RenderError>(())
 //! ```
-use depth_render::{Instance, PinholeCamera, Scene, Window};
-use nalgebra::Isometry3;
+use depth_render::{Instance, PinholeCamera, Scene, Window, unproject};
+use nalgebra::{Isometry3, Point3, Vector3};
 
 /// Fewest masked pixels with both a depth reading and the rendered surface a step needs.
 pub const MIN_PIXELS: usize = 30;
 /// Most steps along the line of sight.
 const MAX_STEPS: usize = 8;
+/// The first step goes along the guess's line of sight where its rendered surface covers at
+/// least this share of the mask's readings.
+const MIN_COVERAGE: f64 = 0.5;
 /// A step shorter than this (metres) ends the fit.
 const SETTLED_M: f64 = 1e-4;
 
@@ -42,8 +45,12 @@ const SETTLED_M: f64 = 1e-4;
 /// `scene` (the object as its mesh 0, metres) through `camera`, lies on the `depth` image's
 /// readings (metres, 0: none; row-major, the camera's size) inside `mask`: each step is the
 /// median difference of observed and rendered depth over the masked pixels where both read
-/// one, the surface rendered again after it. `None` where fewer than [`MIN_PIXELS`] such
-/// pixels are found at the pose.
+/// one, the surface rendered again after it. A guess whose surface covers less than half of the
+/// mask's readings (its line of sight misses the object) first moves, in all three directions,
+/// by the difference of the per-axis medians of the masked readings' points and of the rendered
+/// surface's, and is fitted along its new line of sight.
+/// `None` where fewer than [`MIN_PIXELS`] pixels are compared, or for a pose not in front of the
+/// camera.
 pub fn fit_translation(
     scene: &Scene,
     camera: &PinholeCamera,
@@ -52,17 +59,34 @@ pub fn fit_translation(
     pose: &Isometry3<f64>,
 ) -> Option<Isometry3<f64>> {
     let mut pose = *pose;
-    for _ in 0..MAX_STEPS {
+    let window = Window::full(camera);
+    let readings = mask
+        .iter()
+        .zip(depth)
+        .filter(|&(&m, &d)| m && d > 0.0 && d.is_finite())
+        .count();
+    for first in (0..MAX_STEPS).map(|i| i == 0) {
         let rendered = scene
-            .render(camera, &[Instance::new(0, pose)], Window::full(camera))
+            .render(camera, &[Instance::new(0, pose)], window)
             .ok()?
             .depth;
-        let step = median_difference(depth, &rendered, mask)?;
+        let differences = differences(depth, &rendered, mask);
+        if first && (differences.len() as f64) < MIN_COVERAGE * readings as f64 {
+            // The guess shows the object beside most of its mask (a translation model far
+            // off): its line of sight misses the object, so the surface's median point first
+            // moves onto the masked readings' median point.
+            let observed = median_point(&unproject(camera, window, depth, Some(mask)))?;
+            let surface = median_point(&unproject(camera, window, &rendered, None))?;
+            pose.translation.vector += observed - surface;
+            continue;
+        }
+        let step = median(differences)?;
         let z = pose.translation.vector.z;
-        if z <= 0.0 || z + step <= 0.0 {
+        let next = z + step;
+        if !next.is_finite() || z <= 0.0 || next <= 0.0 {
             return None;
         }
-        pose.translation.vector *= (z + step) / z;
+        pose.translation.vector *= next / z;
         if step.abs() < SETTLED_M {
             break;
         }
@@ -70,21 +94,36 @@ pub fn fit_translation(
     Some(pose)
 }
 
-/// The median of observed minus rendered depth over the masked pixels where both read one;
-/// `None` where fewer than [`MIN_PIXELS`] do.
-fn median_difference(observed: &[f32], rendered: &[f32], mask: &[bool]) -> Option<f64> {
-    let mut differences: Vec<f32> = observed
+/// Observed minus rendered depth over the masked pixels where both read one.
+fn differences(observed: &[f32], rendered: &[f32], mask: &[bool]) -> Vec<f32> {
+    observed
         .iter()
         .zip(rendered)
         .zip(mask)
         .filter(|((o, r), m)| **m && **r > 0.0 && **o > 0.0 && o.is_finite())
         .map(|((o, r), _)| o - r)
-        .collect();
-    if differences.len() < MIN_PIXELS {
+        .collect()
+}
+
+/// The median of `values`; `None` for fewer than [`MIN_PIXELS`].
+fn median(mut values: Vec<f32>) -> Option<f64> {
+    if values.len() < MIN_PIXELS {
         return None;
     }
-    differences.sort_by(f32::total_cmp);
-    Some(f64::from(differences[differences.len() / 2]))
+    values.sort_by(f32::total_cmp);
+    Some(f64::from(values[values.len() / 2]))
+}
+
+/// The per-axis medians of `points`; `None` for fewer than [`MIN_PIXELS`].
+fn median_point(points: &[Point3<f32>]) -> Option<Vector3<f64>> {
+    if points.len() < MIN_PIXELS {
+        return None;
+    }
+    Some(Vector3::from_fn(|axis, _| {
+        let mut values: Vec<f32> = points.iter().map(|p| p[axis]).collect();
+        values.sort_by(f32::total_cmp);
+        f64::from(values[values.len() / 2])
+    }))
 }
 
 #[cfg(test)]
@@ -147,6 +186,21 @@ mod tests {
         let error = (fitted.translation.vector - truth.translation.vector).norm();
         assert!(error < 0.003, "{} mm", error * 1e3);
         assert_eq!(fitted.rotation, truth.rotation);
+    }
+
+    #[test]
+    fn a_guess_beside_the_mask_is_brought_onto_it_first() {
+        let mesh = box_mesh();
+        let scene = Scene::new(std::slice::from_ref(&mesh));
+        let truth = truth();
+        let depth = render(&scene, truth);
+        let mask: Vec<bool> = depth.iter().map(|&d| d > 0.0).collect();
+        // 15 cm aside and 10% too far: the box is drawn beside its mask.
+        let off = (truth.translation.vector + Vector3::new(0.15, 0.0, 0.0)) * 1.1;
+        let guess = Isometry3::from_parts(Translation3::from(off), truth.rotation);
+        let fitted = fit_translation(&scene, &camera(), &depth, &mask, &guess).unwrap();
+        let error = (fitted.translation.vector - truth.translation.vector).norm();
+        assert!(error < 0.01, "{} mm", error * 1e3);
     }
 
     #[test]

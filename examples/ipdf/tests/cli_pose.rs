@@ -270,8 +270,9 @@ fn pose_runs_train_score_and_predict_translations() {
         &format!("{}: fx", camera.display()),
     );
     // With the image's depth (`--camera` gives its units), the most likely translation is also
-    // fitted to it inside the box's visible mask: on the line of sight of the model's, and,
-    // whatever the rotation, within the box's diameter of the truth.
+    // fitted to it inside the box's visible mask: the model's stays as it was, and the fitted
+    // one, whatever the rotation (and this briefly trained model places the box 50 cm off),
+    // lies within the box's diameter of the truth.
     let gt = &read_json(&scene.join("scene_gt.json"))["0"];
     let index = gt
         .as_array()
@@ -299,8 +300,7 @@ fn pose_runs_train_score_and_predict_translations() {
         vector(&fitted["argmax"]["cam_t_m2c"]),
         vector(&fitted["argmax"]["fitted_cam_t_m2c"]),
     );
-    let turn = model_t.normalize().cross(&fitted_t.normalize()).norm();
-    assert!(turn < 1e-9, "{fitted}");
+    assert_eq!(model_t, vector(&predicted["argmax"]["cam_t_m2c"]));
     let truth = vector(&gt[index]["cam_t_m2c"]);
     let models_info = read_json(&data.join("models/models_info.json"));
     let diameter = finite(&models_info[box_id.to_string()]["diameter"]);
