@@ -30,6 +30,8 @@
 use depth_render::{Instance, PinholeCamera, Scene, Window, unproject};
 use nalgebra::{Isometry3, Point3, Vector3};
 
+use crate::eval::instances::median;
+
 /// Fewest masked pixels with both a depth reading and the rendered surface a step needs.
 pub const MIN_PIXELS: usize = 30;
 /// Most steps along the line of sight.
@@ -80,7 +82,7 @@ pub fn fit_translation(
             pose.translation.vector += observed - surface;
             continue;
         }
-        let step = median(differences)?;
+        let step = median_of_enough(differences)?;
         let z = pose.translation.vector.z;
         let next = z + step;
         if !next.is_finite() || z <= 0.0 || next <= 0.0 {
@@ -95,35 +97,26 @@ pub fn fit_translation(
 }
 
 /// Observed minus rendered depth over the masked pixels where both read one.
-fn differences(observed: &[f32], rendered: &[f32], mask: &[bool]) -> Vec<f32> {
+fn differences(observed: &[f32], rendered: &[f32], mask: &[bool]) -> Vec<f64> {
     observed
         .iter()
         .zip(rendered)
         .zip(mask)
         .filter(|((o, r), m)| **m && **r > 0.0 && **o > 0.0 && o.is_finite())
-        .map(|((o, r), _)| o - r)
+        .map(|((o, r), _)| f64::from(o - r))
         .collect()
 }
 
-/// The median of `values`; `None` for fewer than [`MIN_PIXELS`].
-fn median(mut values: Vec<f32>) -> Option<f64> {
-    if values.len() < MIN_PIXELS {
-        return None;
-    }
-    values.sort_by(f32::total_cmp);
-    Some(f64::from(values[values.len() / 2]))
+/// The median (upper middle) of `values`; `None` for fewer than [`MIN_PIXELS`].
+fn median_of_enough(mut values: Vec<f64>) -> Option<f64> {
+    (values.len() >= MIN_PIXELS).then(|| median(&mut values))
 }
 
 /// The per-axis medians of `points`; `None` for fewer than [`MIN_PIXELS`].
 fn median_point(points: &[Point3<f32>]) -> Option<Vector3<f64>> {
-    if points.len() < MIN_PIXELS {
-        return None;
-    }
-    Some(Vector3::from_fn(|axis, _| {
-        let mut values: Vec<f32> = points.iter().map(|p| p[axis]).collect();
-        values.sort_by(f32::total_cmp);
-        f64::from(values[values.len() / 2])
-    }))
+    let [x, y, z] =
+        [0, 1, 2].map(|axis| median_of_enough(points.iter().map(|p| f64::from(p[axis])).collect()));
+    Some(Vector3::new(x?, y?, z?))
 }
 
 #[cfg(test)]
