@@ -313,6 +313,26 @@ fn pose_runs_train_score_and_predict_translations() {
         &predict_args(&translation_run, &rgb, &box_mask, &out, &with_depth),
         "is a translation run",
     );
+    // A depth image of another size than the colour image is refused, naming it.
+    let small_depth = dir.path().join("small_depth.png");
+    image::ImageBuffer::<image::Luma<u16>, _>::from_pixel(8, 6, image::Luma([500u16]))
+        .save(&small_depth)
+        .unwrap();
+    let with_small_depth = [
+        "--level",
+        "1",
+        "--camera",
+        s(&depth_camera),
+        "--depth",
+        s(&small_depth),
+    ];
+    assert_fails(
+        &predict_args(&run, &rgb, &box_mask, &out, &with_small_depth),
+        &format!(
+            "{}: 8 × 6 pixels, but --rgb is {width} × {height}",
+            small_depth.display()
+        ),
+    );
     let mut boxed = vec!["predict", "--checkpoint", s(&run), "--rgb", s(&rgb)];
     boxed.extend(["--bbox", "10,10,40,40", "--out", s(&out)]);
     boxed.extend(with_depth);
