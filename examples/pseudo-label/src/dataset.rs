@@ -47,7 +47,7 @@ pub struct LabelOptions {
     /// K: at most this many labels per instance.
     pub labels: usize,
     /// M: global-alignment trials per label: fewer once one scores below `good_score`, up to
-    /// 3M while none is accepted (after the grid search, with [`Strategy::Reseed`]).
+    /// 3M while none does (after the grid search, with [`Strategy::Reseed`]).
     pub trials: usize,
     /// How labels after the first are found.
     pub strategy: Strategy,
