@@ -3,7 +3,8 @@
 # runs for a mesh of their own (`ipdf pipeline --mesh`: randomised renders of the fixture's scan
 # with a Kinect's depth, pseudo labels, a rotation and a translation model; nothing real in
 # training), scored on the fixture's real frames per instance (rotation error, Acc@15°/30°, LLH,
-# translation error, ADD(-S); and the translation fitted to the frame's depth, with its ADD(-S)).
+# translation error, ADD(-S); the translation fitted to the frame's depth, with its ADD(-S); and
+# the pose refined with the depth from the rotation model's hypotheses, with its VSD and ADD(-S)).
 #
 #   scripts/real-frame-benchmark.sh [OUT] [OBJ_ID ...]
 #
@@ -57,16 +58,23 @@ for i in ids:
                          diameter_mm=result["pose"]["diameter_mm"]))
 rows.sort(key=lambda r: (r["scene_id"], r["im_id"], r["instance"]))
 visible = lambda r: "—" if r["visib_fract"] is None else f"{r['visib_fract']:.0%}"
-lines = ["| scene | image | obj | visible | rotation error (°) | VSD | LLH | translation error (mm) | ADD(-S) (mm) | under 10% of the diameter | fitted to depth: translation error (mm) | its ADD(-S) (mm) | under 10% |",
-         "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
-under = lambda add, r: "yes" if add < 0.1 * r["diameter_mm"] else "no"
+lines = ["| scene | image | obj | visible | rotation error (°) | VSD | LLH | translation error (mm) | ADD(-S) (mm) | under 10% of the diameter | fitted to depth: translation error (mm) | its ADD(-S) (mm) | under 10% | refined with depth: rotation error (°) | its VSD | translation error (mm) | ADD(-S) (mm) | under 10% |",
+         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+under = lambda add, r: "—" if add is None else "yes" if add < 0.1 * r["diameter_mm"] else "no"
+one = lambda v, digits=1: "—" if v is None else f"{v:.{digits}f}"
 for r in rows:
     lines.append(f"| {r['scene_id']} | {r['im_id']} | {r['obj_id']} | {visible(r)} | {r['rotation_error_deg']:.1f} | {r['vsd']:.2f} | {r['llh']:.2f} | {r['translation_error_mm']:.1f} | {r['add_mm']:.1f} ({r['add_metric']}) | {under(r['add_mm'], r)} | "
-                 f"{r['fitted_translation_error_mm']:.1f} | {r['fitted_add_mm']:.1f} | {under(r['fitted_add_mm'], r)} |")
+                 f"{r['fitted_translation_error_mm']:.1f} | {r['fitted_add_mm']:.1f} | {under(r['fitted_add_mm'], r)} | "
+                 f"{one(r.get('refined_rotation_error_deg'))} | {one(r.get('refined_vsd'), 2)} | {one(r.get('refined_translation_error_mm'))} | "
+                 f"{one(r.get('refined_add_mm'))} | {under(r.get('refined_add_mm'), r)} |")
 n = len(rows)
 errors = sorted(r["rotation_error_deg"] for r in rows)
 translations = sorted(r["translation_error_mm"] for r in rows)
 fitted = sorted(r["fitted_translation_error_mm"] for r in rows)
+# An instance without a refined pose (its depth could not be registered) counts as wrong.
+refined_true = lambda r: (r.get("refined_rotation_error_deg") is not None and r["refined_rotation_error_deg"] < 15) or (
+    r.get("refined_vsd") is not None and r["refined_vsd"] < 0.3)
+refined = sorted(r["refined_translation_error_mm"] for r in rows if r.get("refined_translation_error_mm") is not None)
 uniform = -math.log(math.pi ** 2)
 summary = {
     "instances": n,
@@ -83,6 +91,13 @@ summary = {
     "median_fitted_translation_error_mm": fitted[n // 2],
     "fitted_translation_over_50mm": sum(t > 50 for t in fitted),
     "fitted_add_accuracy": sum(r["fitted_add_mm"] < 0.1 * r["diameter_mm"] for r in rows) / n,
+    # The pose refined with the depth from the rotation model's hypotheses (`ipdf eval
+    # --depth-hypotheses`).
+    "refined_acc_15_or_vsd": sum(map(refined_true, rows)) / n,
+    "refined_instances": len(refined),
+    "median_refined_translation_error_mm": refined[len(refined) // 2] if refined else None,
+    "refined_add_accuracy": sum(r.get("refined_add_mm") is not None and r["refined_add_mm"] < 0.1 * r["diameter_mm"]
+                                for r in rows) / n,
 }
 lines.append("")
 lines.append(f"{n} instances: Acc@15° {summary['acc_15']:.0%}, Acc@30° {summary['acc_30']:.0%}, a true pose (under 15° or VSD "
@@ -91,7 +106,10 @@ lines.append(f"{n} instances: Acc@15° {summary['acc_15']:.0%}, Acc@30° {summar
              f"median translation error {summary['median_translation_error_mm']:.1f} mm, ADD(-S) under 10% of the diameter "
              f"{summary['add_accuracy']:.0%}; fitted to depth: median translation error "
              f"{summary['median_fitted_translation_error_mm']:.1f} mm, {summary['fitted_translation_over_50mm']} over 50 mm "
-             f"(the model's: {summary['translation_over_50mm']}), ADD(-S) under 10% of the diameter {summary['fitted_add_accuracy']:.0%}.")
+             f"(the model's: {summary['translation_over_50mm']}), ADD(-S) under 10% of the diameter {summary['fitted_add_accuracy']:.0%}; "
+             f"refined with depth from the rotation model's hypotheses: a true pose {summary['refined_acc_15_or_vsd']:.0%}, "
+             f"median translation error {one(summary['median_refined_translation_error_mm'])} mm, ADD(-S) under 10% of the diameter "
+             f"{summary['refined_add_accuracy']:.0%}.")
 # Per object: the models' scores on their validation renders beside their real instances'
 # scores, and the run's minutes (of the invocation that finished it).
 objects = []

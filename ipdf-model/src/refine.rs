@@ -4,8 +4,8 @@
 use std::collections::HashMap;
 use std::sync::OnceLock;
 
-use nalgebra::{Matrix4, Vector3, Vector4};
-use so3_grid::{Grid, MAX_LEVEL, cell_count, cell_volume};
+use nalgebra::{Matrix4, UnitQuaternion, Vector3, Vector4};
+use so3_grid::{Grid, MAX_LEVEL, cell_count, cell_volume, geodesic_distance};
 
 use crate::ModelError;
 
@@ -88,6 +88,37 @@ impl CellMasses {
     /// first.
     pub fn densest(&self, count: usize) -> Vec<usize> {
         self.densest_in(&So3Cells, count)
+    }
+
+    /// Up to `count` rotations these masses (of SO(3) cells) make likely, spread apart: `first`
+    /// (the most likely rotation), then the centres of the densest cells, densest first, each
+    /// at least `min_angle` radians from every rotation chosen before it. The starts of a pose
+    /// search that the image narrows and another cue (the frame's depth) decides.
+    pub fn rotation_hypotheses(
+        &self,
+        first: UnitQuaternion<f64>,
+        count: usize,
+        min_angle: f64,
+    ) -> Result<Vec<UnitQuaternion<f64>>, ModelError> {
+        let mut chosen = Vec::with_capacity(count);
+        if count == 0 {
+            return Ok(chosen);
+        }
+        chosen.push(first);
+        for position in self.densest(self.cells.len()) {
+            if chosen.len() == count {
+                break;
+            }
+            let (level, index) = self.cells[position];
+            let rotation = cached_grid(level)?.rotation(index)?;
+            if chosen
+                .iter()
+                .all(|c| geodesic_distance(c, &rotation) >= min_angle)
+            {
+                chosen.push(rotation);
+            }
+        }
+        Ok(chosen)
     }
 
     /// Positions of the `count` cells of highest density (mass / volume) in `hierarchy`,
@@ -472,9 +503,51 @@ pub(crate) fn log_sum_exp(values: impl Iterator<Item = f64> + Clone) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::UnitQuaternion;
     use proptest::prelude::*;
-    use so3_grid::geodesic_distance;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(24))]
+        /// The hypotheses start at the given rotation, lie at least the angle apart, and leave
+        /// no cell centre farther than the angle from all of them unless `count` were chosen;
+        /// the second is the densest cell beyond the angle from the first (found by scanning
+        /// every cell).
+        #[test]
+        fn hypotheses_are_spread_and_densest_first(
+            weights in proptest::collection::vec(0.0..1.0f64, 576),
+            first_cell in 0u64..576,
+            count in 1usize..10,
+            degrees in 10.0..90.0f64,
+        ) {
+            let grid = Grid::new(1).unwrap();
+            let total: f64 = weights.iter().sum::<f64>() + 1e-9;
+            let masses = CellMasses {
+                cells: (0..576).map(|i| (1, i)).collect(),
+                masses: weights.iter().map(|w| w / total).collect(),
+                queries: 576,
+                log_normaliser: 0.0,
+            };
+            let first = grid.rotation(first_cell).unwrap();
+            let angle = degrees.to_radians();
+            let found = masses.rotation_hypotheses(first, count, angle).unwrap();
+            prop_assert_eq!(found[0], first);
+            prop_assert!(found.len() <= count);
+            for (i, a) in found.iter().enumerate() {
+                for b in &found[i + 1..] {
+                    prop_assert!(geodesic_distance(a, b) >= angle);
+                }
+            }
+            let far = |r: &UnitQuaternion<f64>| found.iter().all(|c| geodesic_distance(c, r) >= angle);
+            if found.len() < count {
+                prop_assert!((0..576).all(|i| !far(&grid.rotation(i).unwrap())));
+            }
+            let second = (0..576u64)
+                .filter(|&i| geodesic_distance(&first, &grid.rotation(i).unwrap()) >= angle)
+                .max_by(|&a, &b| weights[a as usize].total_cmp(&weights[b as usize]));
+            if let (Some(cell), Some(found_second)) = (second, found.get(1)) {
+                prop_assert_eq!(*found_second, grid.rotation(cell).unwrap());
+            }
+        }
+    }
 
     fn peaked(level: u8, cells: &[u64], centre: &UnitQuaternion<f64>) -> Vec<f64> {
         let grid = Grid::new(level).unwrap();

@@ -1,3 +1,6 @@
+//! A pose fitted to the depth the camera saw: its translation alone ([`fit_translation`]), or
+//! the whole pose from a rotation model's hypotheses ([`pose_from_depth`]).
+//!
 //! A pose's translation fitted to the depth the camera saw. A translation model reads depth from
 //! the crop's apparent size, which occlusion, the image border and the gap between renders and
 //! real frames all bend (tens of millimetres at a metre), while where the object lies in the
@@ -28,7 +31,10 @@
 //! # Ok::<(), depth_render::RenderError>(())
 //! ```
 use depth_render::{Instance, PinholeCamera, Scene, Window, unproject};
-use nalgebra::{Isometry3, Point3, Vector3};
+use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
+use pseudo_label::{
+    LabelOptions, ObjectModel, Observation, PixelLattice, SeededPose, pose_from_hypotheses,
+};
 
 use crate::eval::instances::median;
 
@@ -94,6 +100,27 @@ pub fn fit_translation(
         }
     }
     Some(pose)
+}
+
+/// The pose of `model` (prepared for labelling with `options`) in a frame of `camera` with
+/// `depth` (metres, 0: none) and the instance's `mask` (both row-major, the camera's size),
+/// found from a rotation model's `hypotheses` (the most likely first): each placed on the
+/// masked points and refined by ICP, the depth choosing among them where it tells them apart
+/// and the order where it does not ([`pose_from_hypotheses`]), the depth and mask read at
+/// every `options.pixel_stride`-th pixel as labelling reads them. `None` where the masked
+/// depth cannot be registered (no reading, too few points, a mesh of another scale).
+pub fn pose_from_depth(
+    model: &ObjectModel,
+    options: &LabelOptions,
+    camera: &PinholeCamera,
+    depth: &[f32],
+    mask: &[bool],
+    hypotheses: &[UnitQuaternion<f64>],
+) -> Option<SeededPose> {
+    let lattice = PixelLattice::new(camera, options.pixel_stride);
+    let (depth, mask) = (lattice.sample(depth, 0.0), lattice.sample(mask, false));
+    let observation = Observation::new(lattice.camera, &depth, &mask)?;
+    pose_from_hypotheses(model, &observation, options, hypotheses).ok()
 }
 
 /// Observed minus rendered depth over the masked pixels where both read one.

@@ -308,6 +308,30 @@ fn pose_runs_train_score_and_predict_translations() {
         (fitted_t - truth).norm() < diameter,
         "{fitted} against {truth}"
     );
+    // With depth, a pose is also found from the rotation model's 8 hypotheses: each is placed
+    // on the mask's depth and refined by ICP, so whichever is chosen lies on the box's surface
+    // (its centre within the diameter of the truth), and its rotation matrix is its
+    // quaternion's. Without depth there is none.
+    assert!(predicted.get("refined_with_depth").is_none(), "{predicted}");
+    let refined = &fitted["refined_with_depth"];
+    assert!((refined["hypothesis"].as_u64().unwrap()) < 8, "{refined}");
+    assert!(finite(&refined["score"]) >= 0.0, "{refined}");
+    let refined_t = vector(&refined["cam_t_m2c"]);
+    assert!(
+        (refined_t - truth).norm() < diameter,
+        "{refined} against {truth}"
+    );
+    let wxyz: Vec<f64> = (0..4)
+        .map(|i| finite(&refined["quaternion_wxyz"][i]))
+        .collect();
+    let quaternion = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+        wxyz[0], wxyz[1], wxyz[2], wxyz[3],
+    ));
+    let matrix = quaternion.to_rotation_matrix();
+    for i in 0..9 {
+        let entry = finite(&refined["cam_R_m2c"][i]);
+        assert!((entry - matrix[(i / 3, i % 3)]).abs() < 1e-9, "{refined}");
+    }
     // A translation run has no rotation to render the mesh at; a box has no mask to fit in.
     assert_fails(
         &predict_args(&translation_run, &rgb, &box_mask, &out, &with_depth),

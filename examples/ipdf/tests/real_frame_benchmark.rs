@@ -100,6 +100,10 @@ fn the_benchmark_runs_and_its_table_holds_every_instance_of_the_object() {
             "add_mm",
             "fitted_translation_error_mm",
             "fitted_add_mm",
+            "refined_rotation_error_deg",
+            "refined_vsd",
+            "refined_translation_error_mm",
+            "refined_add_mm",
         ] {
             assert_eq!(number(row, key), number(own, key), "{key}");
         }
@@ -127,6 +131,16 @@ fn the_benchmark_runs_and_its_table_holds_every_instance_of_the_object() {
         (
             "fitted_add_accuracy",
             share(&|r| number(r, "fitted_add_mm") < 0.1 * diameter),
+        ),
+        (
+            "refined_acc_15_or_vsd",
+            share(&|r| {
+                number(r, "refined_rotation_error_deg") < 15.0 || number(r, "refined_vsd") < 0.3
+            }),
+        ),
+        (
+            "refined_add_accuracy",
+            share(&|r| number(r, "refined_add_mm") < 0.1 * diameter),
         ),
         (
             "translation_over_50mm",

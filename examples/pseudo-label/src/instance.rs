@@ -139,7 +139,7 @@ pub(crate) struct Candidate {
 
 impl Candidate {
     /// `pose` rendered and compared with the observation.
-    fn compared(
+    pub(crate) fn compared(
         model: &ObjectModel,
         observation: &Observation,
         pose: Isometry3<f64>,

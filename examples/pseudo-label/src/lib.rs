@@ -55,6 +55,7 @@ mod model;
 mod reference;
 mod report;
 mod score;
+mod seeded;
 pub mod symmetries;
 
 pub use dataset::{
@@ -74,3 +75,4 @@ pub use report::{
     VisibilityBin, report,
 };
 pub use score::{Comparison, Observation, PixelLattice, compare_pose, render_and_compare};
+pub use seeded::{SeededPose, pose_from_hypotheses};

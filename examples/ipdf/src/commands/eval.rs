@@ -59,6 +59,13 @@ pub struct EvalArgs {
     /// (every pose the view cannot tell apart; instances without one are left out).
     #[arg(long, default_value = "gt", value_parser = choice::<Truth>())]
     pub truth: Truth,
+    /// Beside the models' own, score a pose found from this many of the rotation model's
+    /// hypotheses (its most likely rotation, then its densest cells 30° apart) and each frame's
+    /// depth inside the instance's visible mask: each placed on the masked points, refined by
+    /// ICP and scored by render-and-compare, the depth choosing among them where it can tell
+    /// them apart and the image where it cannot (0: off; 8 is the mesh pipeline's).
+    #[arg(long, default_value_t = 0)]
+    pub depth_hypotheses: usize,
     /// Write the scores here (JSON), each instance's as a Markdown table beside it (`.md`).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -78,6 +85,7 @@ pub fn run(args: &EvalArgs) -> Result<serde_json::Value> {
         min_visible_fraction: args.min_visib,
         per_instance: true,
         truth: args.truth,
+        depth_hypotheses: args.depth_hypotheses,
         ..EvalRequest::new(args.checkpoint.clone(), &args.split, args.level)
     };
     let progress = bar(0, "images");

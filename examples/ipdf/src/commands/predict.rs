@@ -2,7 +2,8 @@
 //! (`.npy`, in the cell order of `ipdf grid`), and its most likely rotation (JSON); for a
 //! translation model, or a pose run (a rotation model with one in `translation/`), the
 //! distribution over translations too and the most likely translation (`cam_t_m2c`, mm); with
-//! the image's depth, that translation fitted to it (`fitted_cam_t_m2c`, mm).
+//! the image's depth, that translation fitted to it (`fitted_cam_t_m2c`, mm), and a pose found
+//! from the rotation model's hypotheses and the depth (`refined_with_depth`).
 use std::path::{Path, PathBuf};
 
 use super::check_extension;
@@ -10,11 +11,12 @@ use anyhow::{Context, Result, bail};
 use bop_dataset::{
     BopCamera, Intrinsics, camera_from_json, read_depth, read_json, read_mask, write_json,
 };
-use depth_render::{PinholeCamera, Scene, load_mesh};
-use ipdf::depth_fit::{MIN_PIXELS, fit_translation};
+use depth_render::{PinholeCamera, Scene, TriangleMesh, load_mesh};
+use ipdf::depth_fit::{MIN_PIXELS, fit_translation, pose_from_depth};
 use ipdf::eval::translation::{
     self, is_translation_run, pose_translation_dir, pose_translation_model,
 };
+use ipdf::eval::{DEPTH_HYPOTHESES, HYPOTHESIS_SPACING_DEG};
 use ipdf::npy::write_f32;
 use ipdf::run_info::RunInfo;
 use ipdf::training_data::{CropError, FileCrop, crop_file_box, crop_files, crop_tensor};
@@ -54,7 +56,10 @@ pub struct PredictArgs {
     /// The image's depth (BOP's 16-bit PNG, in the units of `--camera`'s `depth_scale`;
     /// millimetres with `--intrinsics`): a pose run's most likely translation is also fitted to
     /// it inside `--mask`, along its line of sight, with the mesh of the run's dataset
-    /// (`"fitted_cam_t_m2c"`, mm; the library's `ipdf::depth_fit`).
+    /// (`"fitted_cam_t_m2c"`, mm), and a rotation model's 8 rotation hypotheses (its most
+    /// likely rotation, then its densest cells 30° apart) are each placed on the masked depth,
+    /// refined by ICP and compared with it, the depth choosing where it can tell them apart and
+    /// the model where it cannot (`"refined_with_depth"`; the library's `ipdf::depth_fit`).
     #[arg(long)]
     pub depth: Option<PathBuf>,
     /// Grid level of the rotation distribution (4: 294,912 rotations).
@@ -70,7 +75,9 @@ pub struct PredictArgs {
 
 /// Runs `ipdf predict`; returns `{"argmax": {"quaternion_wxyz", "cam_R_m2c", "cam_t_m2c",
 /// "fitted_cam_t_m2c", "score"}, "level", "cells", "densest": [{"quaternion_wxyz", "probability"}, …],
-/// "translation": {"cells", "distribution", "score"}}` with the parts the run's models give.
+/// "translation": {"cells", "distribution", "score"}, "refined_with_depth": {"quaternion_wxyz",
+/// "cam_R_m2c", "cam_t_m2c", "hypothesis", "score"}}` with the parts the run's models and the
+/// inputs give.
 pub fn run(args: &PredictArgs) -> Result<Value> {
     check_extension(
         "--out",
@@ -119,9 +126,18 @@ pub fn run(args: &PredictArgs) -> Result<Value> {
     let mut result = json!({});
     let mut most_likely = None;
     if let Some(model) = &rotation {
-        let (value, best) = predict_rotation(model, &crop, args)?;
+        let (value, best, hypotheses) = predict_rotation(model, &crop, args)?;
         result = value;
         most_likely = Some(best);
+        if let Some(view) = &depth_view {
+            match view.refine(&hypotheses)? {
+                Some(found) => result["refined_with_depth"] = refined_json(&found),
+                None => eprintln!(
+                    "ipdf predict: the depth inside --mask could not be registered to the run's \
+                     mesh (too few readings, or a mesh of another scale): no refined pose"
+                ),
+            }
+        }
     }
     if let (Some(model), Some(geometry)) = (&translation, &geometry) {
         let (t, summary) = predict_translation(model, &crop, geometry, args)?;
@@ -153,12 +169,13 @@ pub fn run(args: &PredictArgs) -> Result<Value> {
 }
 
 /// The rotation distribution written to `--out`, the JSON of the most likely rotation and the
-/// densest cells, and the most likely rotation.
+/// densest cells, the most likely rotation, and the rotation hypotheses a pose is refined from
+/// with depth.
 fn predict_rotation(
     model: &ImplicitPdf,
     crop: &FileCrop,
     args: &PredictArgs,
-) -> Result<(Value, UnitQuaternion<f64>)> {
+) -> Result<(Value, UnitQuaternion<f64>, Vec<UnitQuaternion<f64>>)> {
     let crop = crop_tensor(&crop.pixels, model.config().input_size as usize);
     let mut predictor = Predictor::new(model);
     // The encoder runs once: the grid's masses and the argmax share the crop's image term.
@@ -168,6 +185,11 @@ fn predict_rotation(
     let options = ArgmaxOptions::default();
     let refined = predictor.hierarchical_for(&image_term, &options.refine)?;
     let best = predictor.argmax_from(&image_term, &refined, &options)?;
+    let hypotheses = refined.rotation_hypotheses(
+        best.rotation,
+        DEPTH_HYPOTHESES,
+        HYPOTHESIS_SPACING_DEG.to_radians(),
+    )?;
     let grid = Grid::new(args.level)?;
     let mut order: Vec<usize> = (0..masses.len()).collect();
     order.sort_by(|&a, &b| masses[b].total_cmp(&masses[a]));
@@ -189,22 +211,56 @@ fn predict_rotation(
         "cells": masses.len(),
         "densest": densest,
     });
-    Ok((value, best.rotation))
+    Ok((value, best.rotation, hypotheses))
+}
+
+/// The JSON of a pose found from the hypotheses and the depth: its rotation, its translation
+/// (mm), which hypothesis it came from (0: the most likely rotation) and its render-and-compare
+/// score (in the sensor's expected errors).
+fn refined_json(found: &pseudo_label::SeededPose) -> Value {
+    let t = found.pose.translation.vector * 1000.0;
+    json!({
+        "quaternion_wxyz": rotation_to_wxyz(&found.pose.rotation),
+        "cam_R_m2c": rotation_to_matrix(&found.pose.rotation),
+        "cam_t_m2c": [t.x, t.y, t.z],
+        "hypothesis": found.hypothesis,
+        "score": found.score,
+    })
 }
 
 /// The depth image of `--depth`, the mask of `--mask`, the camera and the mesh of the run's
-/// dataset, read and checked: what fitting the most likely translation to depth needs.
+/// dataset, read and checked: what fitting the most likely pose to depth needs.
 struct DepthView {
     depth: Vec<f32>,
     mask: Vec<bool>,
     camera: PinholeCamera,
+    mesh: TriangleMesh,
     scene: Scene,
+    obj_id: u32,
 }
 
 impl DepthView {
     /// `pose` (metres) fitted to the depth ([`fit_translation`]).
     fn fit(&self, pose: &Isometry3<f64>) -> Option<Isometry3<f64>> {
         fit_translation(&self.scene, &self.camera, &self.depth, &self.mask, pose)
+    }
+
+    /// The pose found from `hypotheses` and the depth ([`pose_from_depth`], the labeller's
+    /// default options).
+    fn refine(
+        &self,
+        hypotheses: &[UnitQuaternion<f64>],
+    ) -> Result<Option<pseudo_label::SeededPose>> {
+        let options = pseudo_label::LabelOptions::default();
+        let model = pseudo_label::ObjectModel::new(self.obj_id, &self.mesh, &options)?;
+        Ok(pose_from_depth(
+            &model,
+            &options,
+            &self.camera,
+            &self.depth,
+            &self.mask,
+            hypotheses,
+        ))
     }
 }
 
@@ -259,6 +315,8 @@ fn depth_view(
         mask: mask.pixels,
         camera,
         scene: Scene::new(std::slice::from_ref(&mesh)),
+        mesh,
+        obj_id: info.obj_id,
     })
 }
 

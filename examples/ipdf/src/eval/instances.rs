@@ -73,6 +73,20 @@ pub struct InstanceScore {
     /// ADD(-S) of the most likely rotation with that fitted translation (mm).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fitted_add_mm: Option<f64>,
+    /// Angle to the nearest true pose of the pose found from the rotation model's hypotheses
+    /// and the frame's depth (degrees; [`crate::eval::surface::depth_refined_poses`]), where
+    /// asked for and the frame has depth and a mask.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refined_rotation_error_deg: Option<f64>,
+    /// Its rotation's VSD to the truth, as [`InstanceScore::vsd`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refined_vsd: Option<f64>,
+    /// Its translation's distance from the truth (mm).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refined_translation_error_mm: Option<f64>,
+    /// Its ADD(-S) (mm).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refined_add_mm: Option<f64>,
 }
 
 /// The scores over all instances: `ipdf eval`'s `"accuracy"`.
@@ -97,7 +111,7 @@ pub struct Accuracy {
     pub above_uniform: f64,
     /// The uniform density's LLH (−ln π²).
     pub uniform_llh: f64,
-    /// `ADD` or `ADD-S`, for pose runs.
+    /// `ADD` or `ADD-S`, for pose runs and poses refined with depth.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub add_metric: Option<String>,
     /// Share of instances under 10% of the diameter in ADD(-S), for pose runs.
@@ -114,6 +128,19 @@ pub struct Accuracy {
     /// translation.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fitted_add_accuracy: Option<f64>,
+    /// For the poses found from the hypotheses and the depth, where asked for: the share of
+    /// instances (those without one counted as wrong) on a true pose, under 15° or 0.3 in VSD…
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refined_acc_15_or_vsd: Option<f64>,
+    /// …their median rotation error (degrees, over the instances that have one)…
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub median_refined_rotation_error_deg: Option<f64>,
+    /// …their median translation error (mm)…
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub median_refined_translation_error_mm: Option<f64>,
+    /// …and the share of instances under 10% of the diameter in ADD(-S).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub refined_add_accuracy: Option<f64>,
 }
 
 /// The most likely translations of a pose run and the object ADD(-S) is measured on.
@@ -127,13 +154,25 @@ pub struct PoseParts<'a> {
     pub fitted: &'a [Option<Vector3<f64>>],
 }
 
+/// The poses found from each crop's rotation hypotheses and its frame's depth
+/// ([`crate::eval::surface::depth_refined_poses`]).
+pub struct RefinedParts<'a> {
+    /// Each crop's pose (translation in mm), where one was found.
+    pub poses: &'a [Option<Isometry3<f64>>],
+    /// Each crop's VSD of that pose's rotation to the truth, as [`InstanceScore::vsd`].
+    pub vsd: &'a [Option<f64>],
+    /// The object's surface points, diameter and symmetry.
+    pub object: &'a ObjectModel,
+}
+
 /// Each instance's scores and their summary, from each crop's scores and most likely rotation
-/// in `evaluation` (and, for pose runs, the translations).
-/// `vsd` holds each instance's [`InstanceScore::vsd`] (empty: none computed).
+/// in `evaluation` (and, for pose runs, the translations; where asked for, the poses refined
+/// with depth). `vsd` holds each instance's [`InstanceScore::vsd`] (empty: none computed).
 pub fn score_instances(
     examples: &Examples,
     evaluation: &RotationEvaluation,
     pose: Option<&PoseParts>,
+    refined: Option<&RefinedParts>,
     vsd: &[Option<f64>],
     min_visib: f64,
 ) -> Result<(Vec<InstanceScore>, Accuracy), Error> {
@@ -142,31 +181,34 @@ pub fn score_instances(
     let truth_poses = examples.required_truth_poses()?;
     let mut rows = Vec::with_capacity(truth_sets.len());
     for (i, at) in examples.instances.iter().enumerate() {
-        let nearest = truth_sets[i]
-            .iter()
-            .map(|truth| geodesic_distance(truth, &rotations[i]))
-            .fold(f64::INFINITY, f64::min);
+        let nearest = |rotation| {
+            truth_sets[i]
+                .iter()
+                .map(|truth| geodesic_distance(truth, rotation))
+                .fold(f64::INFINITY, f64::min)
+                .to_degrees()
+        };
         let estimate = pose.map(|p| Isometry3::from_parts(p.translations[i].into(), rotations[i]));
         let fitted = pose.and_then(|p| {
             let t = p.fitted.get(i).copied().flatten()?;
             Some(Isometry3::from_parts(t.into(), rotations[i]))
         });
         let truth = &truth_poses[i];
-        let add_of = |e: Isometry3<f64>| {
-            pose.map(|p| {
-                if p.object.symmetric {
-                    add_s(&p.object.points, &e, truth)
-                } else {
-                    add(&p.object.points, &e, truth)
-                }
-            })
+        let add_on = |object: &ObjectModel, e: Isometry3<f64>| {
+            if object.symmetric {
+                add_s(&object.points, &e, truth)
+            } else {
+                add(&object.points, &e, truth)
+            }
         };
+        let add_of = |e: Isometry3<f64>| pose.map(|p| add_on(p.object, e));
+        let found = refined.and_then(|r| r.poses.get(i).copied().flatten());
         rows.push(InstanceScore {
             scene_id: at.scene_id,
             im_id: at.im_id,
             instance: at.instance,
             visib_fract: examples.visible_fractions[i],
-            rotation_error_deg: nearest.to_degrees(),
+            rotation_error_deg: nearest(&rotations[i]),
             vsd: vsd.get(i).copied().flatten(),
             llh: evaluation.llh[i],
             maad_deg: evaluation.maad_deg[i],
@@ -177,13 +219,23 @@ pub fn score_instances(
             fitted_translation_error_mm: fitted
                 .map(|e| translation_error(&e.translation.vector, &truth.translation.vector)),
             fitted_add_mm: fitted.and_then(add_of),
+            refined_rotation_error_deg: found.as_ref().map(|p| nearest(&p.rotation)),
+            refined_vsd: refined.and_then(|r| r.vsd.get(i).copied().flatten()),
+            refined_translation_error_mm: found
+                .map(|p| translation_error(&p.translation.vector, &truth.translation.vector)),
+            refined_add_mm: refined.zip(found).map(|(r, p)| add_on(r.object, p)),
         });
     }
-    let accuracy = summarise(&rows, pose, min_visib);
+    let accuracy = summarise(&rows, pose, refined.map(|r| r.object), min_visib);
     Ok((rows, accuracy))
 }
 
-fn summarise(rows: &[InstanceScore], pose: Option<&PoseParts>, min_visib: f64) -> Accuracy {
+fn summarise(
+    rows: &[InstanceScore],
+    pose: Option<&PoseParts>,
+    refined: Option<&ObjectModel>,
+    min_visib: f64,
+) -> Accuracy {
     let n = rows.len().max(1) as f64;
     let share =
         |test: &dyn Fn(&InstanceScore) -> bool| rows.iter().filter(|r| test(r)).count() as f64 / n;
@@ -195,6 +247,18 @@ fn summarise(rows: &[InstanceScore], pose: Option<&PoseParts>, min_visib: f64) -
         .filter_map(|r| r.fitted_translation_error_mm)
         .collect();
     let fitted_rows = fitted.len().max(1) as f64;
+    let true_pose = |error: Option<f64>, vsd: Option<f64>| {
+        error.is_some_and(|e| e < ACCURACY_THRESHOLDS_DEG[0])
+            || vsd.is_some_and(|v| v < VSD_CORRECT)
+    };
+    let mut refined_rotations: Vec<f64> = rows
+        .iter()
+        .filter_map(|r| r.refined_rotation_error_deg)
+        .collect();
+    let mut refined_translations: Vec<f64> = rows
+        .iter()
+        .filter_map(|r| r.refined_translation_error_mm)
+        .collect();
     Accuracy {
         instances: rows.len(),
         min_visib,
@@ -206,7 +270,10 @@ fn summarise(rows: &[InstanceScore], pose: Option<&PoseParts>, min_visib: f64) -
         median_rotation_error_deg: median(&mut errors),
         above_uniform: share(&|r| r.llh > uniform_llh()),
         uniform_llh: uniform_llh(),
-        add_metric: pose.map(|p| if p.object.symmetric { "ADD-S" } else { "ADD" }.to_string()),
+        add_metric: pose
+            .map(|p| p.object)
+            .or(refined)
+            .map(|o| if o.symmetric { "ADD-S" } else { "ADD" }.to_string()),
         add_accuracy: pose.map(|p| {
             share(&|r| {
                 r.add_mm
@@ -222,6 +289,20 @@ fn summarise(rows: &[InstanceScore], pose: Option<&PoseParts>, min_visib: f64) -
             rows.iter().filter(under).count() as f64 / fitted_rows
         }),
         median_fitted_translation_error_mm: (!fitted.is_empty()).then(|| median(&mut fitted)),
+        refined_acc_15_or_vsd: refined
+            .map(|_| share(&|r| true_pose(r.refined_rotation_error_deg, r.refined_vsd))),
+        median_refined_rotation_error_deg: refined
+            .filter(|_| !refined_rotations.is_empty())
+            .map(|_| median(&mut refined_rotations)),
+        median_refined_translation_error_mm: refined
+            .filter(|_| !refined_translations.is_empty())
+            .map(|_| median(&mut refined_translations)),
+        refined_add_accuracy: refined.map(|object| {
+            share(&|r| {
+                r.refined_add_mm
+                    .is_some_and(|d| d < ADD_FRACTION * object.diameter_mm)
+            })
+        }),
     }
 }
 
@@ -233,7 +314,12 @@ pub fn median(values: &mut [f64]) -> f64 {
 
 /// The instances and their summary as a Markdown table, under a heading naming `what`.
 pub fn markdown(what: &str, rows: &[InstanceScore], accuracy: &Accuracy) -> String {
-    let pose = accuracy.add_metric.as_deref();
+    let pose = accuracy
+        .median_translation_error_mm
+        .and(accuracy.add_metric.as_deref());
+    let refined = accuracy
+        .refined_acc_15_or_vsd
+        .and(accuracy.add_metric.as_deref());
     let mut out = format!(
         "## {what}\n\n| scene | image | instance | visible | rotation error (°) | VSD | LLH | MAAD (°) | Recall MAAD (°) |"
     );
@@ -249,6 +335,13 @@ pub fn markdown(what: &str, rows: &[InstanceScore], accuracy: &Accuracy) -> Stri
             );
             rule.push_str("---|---|");
         }
+    }
+    if let Some(metric) = refined {
+        let _ = write!(
+            out,
+            " refined with depth: rotation error (°) | its VSD | translation error (mm) | its {metric} (mm) |"
+        );
+        rule.push_str("---|---|---|---|");
     }
     let _ = writeln!(out, "\n{rule}");
     for r in rows {
@@ -274,6 +367,17 @@ pub fn markdown(what: &str, rows: &[InstanceScore], accuracy: &Accuracy) -> Stri
                 let (t, add) = (r.fitted_translation_error_mm, r.fitted_add_mm);
                 let _ = write!(out, " {} | {} |", mm(t), mm(add));
             }
+        }
+        if refined.is_some() {
+            let one = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.1}"));
+            let vsd = r.refined_vsd.map_or("—".to_string(), |v| format!("{v:.2}"));
+            let _ = write!(
+                out,
+                " {} | {vsd} | {} | {} |",
+                one(r.refined_rotation_error_deg),
+                one(r.refined_translation_error_mm),
+                one(r.refined_add_mm)
+            );
         }
         out.push('\n');
     }
@@ -316,6 +420,22 @@ pub fn markdown(what: &str, rows: &[InstanceScore], accuracy: &Accuracy) -> Stri
             "; with the translation fitted to depth, {metric} under 10% of the diameter {:.0}%, \
              median translation error {t:.1} mm",
             100.0 * share
+        );
+    }
+    if let (Some(metric), Some(share), Some(add_share)) =
+        (refined, a.refined_acc_15_or_vsd, a.refined_add_accuracy)
+    {
+        let median_of =
+            |v: Option<f64>, unit: &str| v.map_or("—".into(), |v| format!("{v:.1}{unit}"));
+        let _ = write!(
+            out,
+            "; refined with depth from the rotation model's hypotheses, a true pose for {:.0}%, \
+             median rotation error {}, median translation error {}, {metric} under 10% of the \
+             diameter {:.0}%",
+            100.0 * share,
+            median_of(a.median_refined_rotation_error_deg, "°"),
+            median_of(a.median_refined_translation_error_mm, " mm"),
+            100.0 * add_share
         );
     }
     out.push_str(".\n");

@@ -13,14 +13,14 @@ use bop_dataset::{BopDataset, Progress, RotationRepairs};
 use ipdf_model::rotation::{ImplicitPdf, UNDER_RESOLUTION_LIMIT};
 use ipdf_model::translation::TranslationPdf;
 use ipdf_model::{RefineOptions, default_device};
-use nalgebra::Isometry3;
+use nalgebra::{Isometry3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 
 use crate::Error;
 use crate::run_info::RunInfo;
 use crate::training_data::{CropSource, ExampleOptions, Examples, LabelSource, load_examples};
-use instances::{Accuracy, InstanceScore, PoseParts, score_instances};
-use rotation::evaluate_rotations;
+use instances::{Accuracy, InstanceScore, PoseParts, RefinedParts, score_instances};
+use rotation::{Picks, evaluate_rotations};
 use translation::{
     ObjectModel, PoseEval, TranslationEval, evaluate_pose, evaluate_translation,
     pose_translation_model,
@@ -79,6 +79,10 @@ pub struct EvalRequest {
     pub per_instance: bool,
     /// What the rotations are scored against.
     pub truth: Truth,
+    /// With per-instance scores, a pose found from this many of the rotation model's
+    /// hypotheses and the frame's depth is scored beside the models' own
+    /// ([`surface::depth_refined_poses`]; 0: none).
+    pub depth_hypotheses: usize,
 }
 
 impl EvalRequest {
@@ -98,6 +102,7 @@ impl EvalRequest {
             min_visible_fraction: MIN_VISIBLE_FRACTION,
             per_instance: false,
             truth: Truth::GroundTruth,
+            depth_hypotheses: 0,
         }
     }
 
@@ -152,6 +157,13 @@ impl EvalRequest {
 fn ground_truth_name() -> String {
     Truth::GroundTruth.name().into()
 }
+
+/// The rotation model's hypotheses a pose is refined from with depth where asked for
+/// (`ipdf eval --depth-hypotheses`, the mesh pipeline's real split)…
+pub const DEPTH_HYPOTHESES: usize = 8;
+/// …at least this far apart (degrees): ICP from a start this far off a box's true pose still
+/// lands on it (`pseudo_label::pose_from_hypotheses`' tests start 25° off).
+pub const HYPOTHESIS_SPACING_DEG: f64 = 30.0;
 
 /// BOP's least visible fraction of an instance scored.
 pub const MIN_VISIBLE_FRACTION: f64 = 0.1;
@@ -270,8 +282,13 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
     let translation_model = pose_translation_model(&request.checkpoint, &model)?;
     let passes = if translation_model.is_some() { 2 } else { 1 };
     progress.set_total(passes * examples.instances.len() as u64, 0);
-    let argmax = translation_model.is_some() || request.per_instance;
-    let evaluation = evaluate_rotations(&model, &examples, &grid, argmax, progress)?;
+    let refine = request.per_instance && request.depth_hypotheses > 0;
+    let picks = Picks {
+        argmax: translation_model.is_some() || request.per_instance,
+        hypotheses: if refine { request.depth_hypotheses } else { 0 },
+        hypothesis_spacing: HYPOTHESIS_SPACING_DEG.to_radians(),
+    };
+    let evaluation = evaluate_rotations(&model, &examples, &grid, picks, progress)?;
     let scores = evaluation.scores;
     let (translation, pose, poses) = match &translation_model {
         Some(translation_model) => {
@@ -319,10 +336,52 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
             &examples,
             &evaluation.argmax,
         )?;
+        let refined = if refine {
+            let poses = surface::depth_refined_poses(
+                &dataset,
+                &request.split,
+                info.obj_id,
+                &examples,
+                &evaluation.hypotheses,
+            )?;
+            // A rotation without a pose is scored as the identity and its VSD dropped.
+            let rotations: Vec<_> = poses
+                .iter()
+                .map(|p| p.map_or_else(UnitQuaternion::identity, |p| p.rotation))
+                .collect();
+            let vsd: Vec<Option<f64>> = surface::rotation_vsd(
+                &dataset,
+                &request.split,
+                info.obj_id,
+                &examples,
+                &rotations,
+            )?
+            .into_iter()
+            .zip(&poses)
+            .map(|(v, p)| v.filter(|_| p.is_some()))
+            .collect();
+            Some((poses, vsd))
+        } else {
+            None
+        };
+        let loaded;
+        let object = match (&refined, &poses) {
+            (None, _) => None,
+            (Some(_), Some((_, object))) => Some(object),
+            (Some(_), None) => {
+                loaded = ObjectModel::load(&dataset, info.obj_id)?;
+                Some(&loaded)
+            }
+        };
+        let refined_parts = refined
+            .as_ref()
+            .zip(object)
+            .map(|((poses, vsd), object)| RefinedParts { poses, vsd, object });
         let (rows, accuracy) = score_instances(
             &examples,
             &evaluation,
             pose.as_ref(),
+            refined_parts.as_ref(),
             &vsd,
             request.min_visible_fraction,
         )?;

@@ -44,7 +44,7 @@ pub fn evaluate(
     grid: &RefineOptions,
     progress: &dyn Progress,
 ) -> Result<Scores, Error> {
-    Ok(evaluate_rotations(model, examples, grid, false, progress)?.scores)
+    Ok(evaluate_rotations(model, examples, grid, Picks::default(), progress)?.scores)
 }
 
 /// Each crop's scores beside the means: what [`evaluate_rotations`] returns.
@@ -60,16 +60,30 @@ pub struct RotationEvaluation {
     pub recall_maad_deg: Vec<f64>,
     /// Each crop's most likely rotation (empty unless asked for).
     pub argmax: Vec<UnitQuaternion<f64>>,
+    /// Each crop's rotation hypotheses, the most likely first (empty unless asked for;
+    /// [`ipdf_model::CellMasses::rotation_hypotheses`]).
+    pub hypotheses: Vec<Vec<UnitQuaternion<f64>>>,
 }
 
-/// [`evaluate`], with each crop's LLH, MAAD and Recall MAAD, and with `argmax` each crop's most
-/// likely rotation too ([`Predictor::argmax_from`] on the same distribution). Each crop's image
-/// term is computed once.
+/// Which rotations [`evaluate_rotations`] picks from each crop's distribution beside its scores.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Picks {
+    /// The most likely rotation.
+    pub argmax: bool,
+    /// This many rotation hypotheses (0: none; they start at the most likely rotation)…
+    pub hypotheses: usize,
+    /// …at least this far apart (radians).
+    pub hypothesis_spacing: f64,
+}
+
+/// [`evaluate`], with each crop's LLH, MAAD and Recall MAAD, and the rotations `picks` asks
+/// for: each crop's most likely rotation ([`Predictor::argmax_from`] on the same distribution),
+/// its rotation hypotheses. Each crop's image term is computed once.
 pub fn evaluate_rotations(
     model: &ImplicitPdf,
     examples: &Examples,
     grid: &RefineOptions,
-    argmax: bool,
+    picks: Picks,
     progress: &dyn Progress,
 ) -> Result<RotationEvaluation, Error> {
     let truths = examples.required_truth_sets()?;
@@ -79,7 +93,7 @@ pub fn evaluate_rotations(
         ..ArgmaxOptions::default()
     };
     let (mut queries, mut sum_under) = (0, 0.0);
-    let (mut llh, mut rotations) = (Vec::new(), Vec::new());
+    let (mut llh, mut rotations, mut hypotheses) = (Vec::new(), Vec::new(), Vec::new());
     let (mut maad_deg, mut recall_maad_deg) = (Vec::new(), Vec::new());
     for (i, truth) in truths.iter().enumerate() {
         let crop = to_unit_floats(&examples.crops.get(i as i64));
@@ -92,9 +106,20 @@ pub fn evaluate_rotations(
         recall_maad_deg.push(recall_maad(&distribution, truth, RECALL_THRESHOLD)?);
         sum_under += predictor.under_resolution_for(&image_term, &masses)?;
         queries = queries.max(masses.queries);
-        if argmax {
-            let best = predictor.argmax_from(&image_term, &masses, &argmax_options)?;
-            rotations.push(best.rotation);
+        if picks.argmax || picks.hypotheses > 0 {
+            let best = predictor
+                .argmax_from(&image_term, &masses, &argmax_options)?
+                .rotation;
+            if picks.hypotheses > 0 {
+                hypotheses.push(masses.rotation_hypotheses(
+                    best,
+                    picks.hypotheses,
+                    picks.hypothesis_spacing,
+                )?);
+            }
+            if picks.argmax {
+                rotations.push(best);
+            }
         }
         progress.advance(1);
     }
@@ -114,6 +139,7 @@ pub fn evaluate_rotations(
         maad_deg,
         recall_maad_deg,
         argmax: rotations,
+        hypotheses,
     })
 }
 

@@ -5,7 +5,9 @@
 //! whose printed sides alone tell its half turns apart, a mug whose handle is hidden), so a
 //! rotation within 15° of the truth's symmetries *or* under that VSD counts as a true pose.
 //! Where the frame has depth, a most likely pose's translation fitted to it
-//! ([`depth_fitted_translations`]) is scored beside the translation model's.
+//! ([`depth_fitted_translations`]) is scored beside the translation model's, and a pose found
+//! from the rotation model's hypotheses and the depth ([`depth_refined_poses`]) beside the
+//! models' own.
 use std::collections::BTreeMap;
 use std::collections::btree_map::Entry;
 
@@ -17,8 +19,10 @@ use bop_dataset::{
 use depth_render::{Instance, PinholeCamera, Scene, Window, visible_surface_discrepancy};
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 
+use pseudo_label::{LabelOptions, ObjectModel};
+
 use crate::Error;
-use crate::depth_fit::fit_translation;
+use crate::depth_fit::{fit_translation, pose_from_depth};
 use crate::eval::object_mesh;
 use crate::training_data::{Examples, InstanceRef};
 
@@ -96,24 +100,10 @@ pub fn depth_fitted_translations(
     let mut frames = FrameDepths::new(dataset, split);
     let mut fitted = Vec::with_capacity(poses.len());
     for (at, pose) in examples.instances.iter().zip(poses) {
-        let mask_path = dataset
-            .scene(split, at.scene_id)
-            .visible_mask_path(at.im_id, at.instance);
-        let frame = match frames.load(at)? {
-            Some(frame) if mask_path.exists() => frame,
-            _ => {
-                fitted.push(None);
-                continue;
-            }
+        let Some((frame, mask)) = frames.load_masked(at)? else {
+            fitted.push(None);
+            continue;
         };
-        let mask = read_mask(&mask_path)?;
-        if (mask.width, mask.height) != (frame.depth.width, frame.depth.height) {
-            let reason = format!(
-                "{}×{} pixels, its depth image {}×{}",
-                mask.width, mask.height, frame.depth.width, frame.depth.height
-            );
-            return Err(FileError::new(&mask_path, "size", reason).into());
-        }
         let pose = fit_translation(
             &scene_of_mesh,
             &frame.camera,
@@ -124,6 +114,46 @@ pub fn depth_fitted_translations(
         fitted.push(pose.map(|p| p.translation.vector * 1000.0));
     }
     Ok(fitted)
+}
+
+/// Each instance's pose found from its rotation `hypotheses` (the most likely first) and the
+/// depth image of its frame in `split` of `dataset` inside the instance's visible mask
+/// ([`crate::depth_fit::pose_from_depth`] with the labeller's default options: object
+/// `obj_id`'s mesh, a Kinect's expected errors moved to the depth's noise, every other pixel),
+/// translation in mm. `None` for an instance whose frame has no depth image or no mask, or
+/// whose masked depth cannot be registered (too few points, another scale).
+pub fn depth_refined_poses(
+    dataset: &BopDataset,
+    split: &str,
+    obj_id: u32,
+    examples: &Examples,
+    hypotheses: &[Vec<UnitQuaternion<f64>>],
+) -> Result<Vec<Option<Isometry3<f64>>>, Error> {
+    let options = LabelOptions::default();
+    let model = ObjectModel::new(obj_id, &object_mesh(dataset, obj_id, 0.001)?, &options)?;
+    let mut frames = FrameDepths::new(dataset, split);
+    let mut refined = Vec::with_capacity(hypotheses.len());
+    for (at, rotations) in examples.instances.iter().zip(hypotheses) {
+        let Some((frame, mask)) = frames.load_masked(at)? else {
+            refined.push(None);
+            continue;
+        };
+        let pose = pose_from_depth(
+            &model,
+            &options,
+            &frame.camera,
+            &frame.depth.pixels,
+            &mask.pixels,
+            rotations,
+        );
+        refined.push(pose.map(|found| {
+            Isometry3::from_parts(
+                (found.pose.translation.vector * 1000.0).into(),
+                found.pose.rotation,
+            )
+        }));
+    }
+    Ok(refined)
 }
 
 /// A pose whose translation is in mm, in metres.
@@ -153,6 +183,32 @@ impl<'a> FrameDepths<'a> {
             split,
             cameras: BTreeMap::new(),
         }
+    }
+
+    /// The depth image and camera of `at`'s frame with the instance's visible mask; `None`
+    /// where the frame has no depth image or the instance no mask. A mask of another size than
+    /// the depth image is an error naming it.
+    fn load_masked(
+        &mut self,
+        at: &InstanceRef,
+    ) -> Result<Option<(FrameDepth, Image<bool>)>, Error> {
+        let mask_path = self
+            .dataset
+            .scene(self.split, at.scene_id)
+            .visible_mask_path(at.im_id, at.instance);
+        let frame = match self.load(at)? {
+            Some(frame) if mask_path.exists() => frame,
+            _ => return Ok(None),
+        };
+        let mask = read_mask(&mask_path)?;
+        if (mask.width, mask.height) != (frame.depth.width, frame.depth.height) {
+            let reason = format!(
+                "{}×{} pixels, its depth image {}×{}",
+                mask.width, mask.height, frame.depth.width, frame.depth.height
+            );
+            return Err(FileError::new(&mask_path, "size", reason).into());
+        }
+        Ok(Some((frame, mask)))
     }
 
     /// The depth image and camera of `at`'s frame; `None` where it has no depth image.

@@ -28,7 +28,7 @@ use super::{PipelineSummary, StageTimes, first_instance_figure, label_split, on_
 use super::{score_labels, train_request, write_figure, write_report};
 use crate::Error;
 use crate::eval::instances::markdown;
-use crate::eval::{EvalRequest, EvalResult, evaluate_run};
+use crate::eval::{DEPTH_HYPOTHESES, EvalRequest, EvalResult, evaluate_run};
 use crate::plots::{plot_training_curves, write_png};
 use crate::progress::bar;
 use crate::training::{TRANSLATION_DIR, Target, is_trained, train_model};
@@ -284,6 +284,7 @@ fn score(
         dataset: Some(real.dataset.clone()),
         obj_id: Some(real.obj_id),
         per_instance: true,
+        depth_hypotheses: DEPTH_HYPOTHESES,
         ..EvalRequest::new(model.to_path_buf(), &real.split, plan.eval_level)
     };
     let path = out.join("eval_real.json");
