@@ -133,6 +133,37 @@ fn pose_runs_train_score_and_predict_translations() {
 
     let scores = ipdf_json(&["eval", "--checkpoint", s(&run), "--level", "2"]);
     assert_eq!(scores["truth"], "gt");
+    // With --depth-hypotheses, each rendered instance (depth and masks) also has a pose found
+    // from the rotation model's hypotheses and its depth, and the summary counts its true poses
+    // as the rows say; without it, none.
+    let rows = scores["instances"].as_array().unwrap();
+    assert!(rows.iter().all(|r| r.get("refined_vsd").is_none()));
+    let refined = ipdf_json(&[
+        "eval",
+        "--checkpoint",
+        s(&run),
+        "--level",
+        "2",
+        "--depth-hypotheses",
+        "4",
+    ]);
+    let rows = refined["instances"].as_array().unwrap();
+    let true_poses = rows
+        .iter()
+        .filter(|r| {
+            finite(&r["refined_rotation_error_deg"]) < 15.0 || finite(&r["refined_vsd"]) < 0.3
+        })
+        .count();
+    assert!(
+        rows.iter()
+            .all(|r| finite(&r["refined_translation_error_mm"]) >= 0.0)
+    );
+    let share = finite(&refined["accuracy"]["refined_acc_15_or_vsd"]);
+    assert!(
+        (share - true_poses as f64 / rows.len() as f64).abs() < 1e-12,
+        "{refined}"
+    );
+    assert_eq!(refined["llh"], scores["llh"]);
     // Scored against reference sets, which `ipdf label --reference` must have made first; sets
     // that hold the ground truth turned by each symmetry of models_info.json score as the
     // ground truth does.
