@@ -5,9 +5,9 @@
 //! off lands on the pose the depth shows), then scored by render-and-compare. The depth settles
 //! what it can see (a rotation roughly right, the place); the image settles what the depth
 //! cannot tell apart (a printed box's half turns): of the refined poses that the observation
-//! does not tell apart from the best ([`Comparison::told_apart_from`]) and that score under the
-//! labeller's acceptance bar (`max_score`, or within `score_margin` of the best where even the
-//! best is above it), the one from the most likely hypothesis is chosen.
+//! does not tell apart from the best ([`crate::Comparison::told_apart_from`]) and that score
+//! under the labeller's acceptance bar (`max_score`, or within `score_margin` of the best where
+//! even the best is above it), the one from the most likely hypothesis is chosen.
 use nalgebra::{Isometry3, UnitQuaternion};
 use rayon::prelude::*;
 
