@@ -13,7 +13,7 @@ use bop_dataset::{BopDataset, Progress, RotationRepairs};
 use ipdf_model::rotation::{ImplicitPdf, UNDER_RESOLUTION_LIMIT};
 use ipdf_model::translation::TranslationPdf;
 use ipdf_model::{RefineOptions, default_device};
-use nalgebra::{Isometry3, UnitQuaternion};
+use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};
 
 use crate::Error;
@@ -329,12 +329,13 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
             object,
             fitted: &fitted,
         });
+        let most_likely: Vec<_> = evaluation.argmax.iter().copied().map(Some).collect();
         let vsd = surface::rotation_vsd(
             &dataset,
             &request.split,
             info.obj_id,
             &examples,
-            &evaluation.argmax,
+            &most_likely,
         )?;
         let refined = if refine {
             let poses = surface::depth_refined_poses(
@@ -344,22 +345,14 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
                 &examples,
                 &evaluation.hypotheses,
             )?;
-            // A rotation without a pose is scored as the identity and its VSD dropped.
-            let rotations: Vec<_> = poses
-                .iter()
-                .map(|p| p.map_or_else(UnitQuaternion::identity, |p| p.rotation))
-                .collect();
-            let vsd: Vec<Option<f64>> = surface::rotation_vsd(
+            let rotations: Vec<_> = poses.iter().map(|p| p.map(|p| p.rotation)).collect();
+            let vsd = surface::rotation_vsd(
                 &dataset,
                 &request.split,
                 info.obj_id,
                 &examples,
                 &rotations,
-            )?
-            .into_iter()
-            .zip(&poses)
-            .map(|(v, p)| v.filter(|_| p.is_some()))
-            .collect();
+            )?;
             Some((poses, vsd))
         } else {
             None

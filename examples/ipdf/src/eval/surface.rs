@@ -33,19 +33,19 @@ pub const VSD_TAU_M: f32 = 0.02;
 /// BOP 2018 counts a pose correct under this VSD.
 pub const VSD_CORRECT: f64 = 0.3;
 
-/// Each instance's VSD between its most likely rotation in `rotations` and its ground-truth
-/// pose, judged against the depth image of its frame in `split` of `dataset`, with object
+/// Each instance's VSD between its rotation in `rotations` (its most likely one, or the
+/// rotation of a pose refined with depth) and its ground-truth pose, judged against the depth image of its frame in `split` of `dataset`, with object
 /// `obj_id`'s mesh. The rotation is placed so that the centre of the mesh's bounding box lies
 /// where the truth puts it: a rotation says nothing of where the object is, and a box turned
 /// half about its own centre shows the surface the truth shows even where the mesh's origin is
-/// off that centre. `None` for an instance whose frame has no depth image or where neither
-/// pose is visible.
+/// off that centre. `None` for an instance without a rotation, whose frame has no depth image,
+/// or where neither pose is visible.
 pub fn rotation_vsd(
     dataset: &BopDataset,
     split: &str,
     obj_id: u32,
     examples: &Examples,
-    rotations: &[UnitQuaternion<f64>],
+    rotations: &[Option<UnitQuaternion<f64>>],
 ) -> Result<Vec<Option<f64>>, Error> {
     let truths = examples.required_truth_poses()?;
     let mesh = object_mesh(dataset, obj_id, 0.001)?;
@@ -55,7 +55,7 @@ pub fn rotation_vsd(
     let mut frames = FrameDepths::new(dataset, split);
     let mut scores = Vec::with_capacity(truths.len());
     for ((at, truth), rotation) in examples.instances.iter().zip(truths).zip(rotations) {
-        let Some(frame) = frames.load(at)? else {
+        let (Some(rotation), Some(frame)) = (rotation, frames.load(at)?) else {
             scores.push(None);
             continue;
         };
@@ -333,7 +333,7 @@ mod tests {
         let scores: Vec<f64> = rotations
             .iter()
             .map(|r| {
-                rotation_vsd(&dataset, "test", 1, &examples(truth, &[0]), &[*r]).unwrap()[0]
+                rotation_vsd(&dataset, "test", 1, &examples(truth, &[0]), &[Some(*r)]).unwrap()[0]
                     .unwrap()
             })
             .collect();
@@ -351,7 +351,7 @@ mod tests {
             "test",
             1,
             &examples(truth, &[1, 0]),
-            &[truth.rotation, truth.rotation],
+            &[Some(truth.rotation), Some(truth.rotation)],
         )
         .unwrap();
         assert_eq!(scores[0], None);
@@ -369,7 +369,7 @@ mod tests {
             "test",
             1,
             &examples(truth, &[2]),
-            &[truth.rotation],
+            &[Some(truth.rotation)],
         )
         .unwrap_err()
         .to_string();
