@@ -363,6 +363,29 @@ fn pose_runs_train_score_and_predict_translations() {
         let entry = finite(&refined["cam_R_m2c"][i]);
         assert!((entry - matrix[(i / 3, i % 3)]).abs() < 1e-9, "{refined}");
     }
+    // A depth image with no reading inside the mask: predict still answers, with neither the
+    // fitted translation nor the refined pose.
+    let blank_depth = dir.path().join("blank_depth.png");
+    image::ImageBuffer::<image::Luma<u16>, _>::from_pixel(width, height, image::Luma([0u16]))
+        .save(&blank_depth)
+        .unwrap();
+    let with_blank_depth = [
+        "--level",
+        "1",
+        "--camera",
+        s(&depth_camera),
+        "--depth",
+        s(&blank_depth),
+    ];
+    let blank = ipdf_json(&predict_args(
+        &run,
+        &rgb,
+        &box_mask,
+        &out,
+        &with_blank_depth,
+    ));
+    assert!(blank.get("refined_with_depth").is_none(), "{blank}");
+    assert!(blank["argmax"].get("fitted_cam_t_m2c").is_none(), "{blank}");
     // A translation run has no rotation to render the mesh at; a box has no mask to fit in.
     assert_fails(
         &predict_args(&translation_run, &rgb, &box_mask, &out, &with_depth),
