@@ -123,6 +123,7 @@ fn a_mesh_run_is_scored_on_the_real_frames() {
     assert_eq!(report["config"]["frames_per_object"], 24);
     let parts = ["lights", "backgrounds", "textures", "camera"];
     assert_eq!(report["config"]["randomize"], json!(parts));
+    assert_eq!(report["config"]["placement"], "arranged");
     // Every real instance of the object is scored, and only those.
     let real = &report["real"];
     let scored: Vec<(u64, u64)> = real["instances"]
@@ -189,6 +190,8 @@ fn a_mesh_run_is_scored_on_the_real_frames() {
     // A rerun with other renders is refused, naming the flag.
     let other = setup.words(&setup.camera, &["--distance", "0.5", "1.0"]);
     assert_refused(&other, "distance_m (--distance)");
+    let leaning = setup.words(&setup.camera, &["--placement", "leaning"]);
+    assert_refused(&leaning, "placement (--placement)");
 }
 
 #[test]

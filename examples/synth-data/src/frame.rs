@@ -44,20 +44,33 @@ pub enum Placement {
     /// a face drawn uniformly from those the object stands on firmly ([`FIRM_TIPPING_DEG`]), so
     /// that a box stands on its end, and a can on its caps, as often as it lies on a side.
     Arranged,
+    /// As in a cluttered scene: arranged, but a third of the frames tilted off the face drawn,
+    /// by [`LEANING_DEG`] about a random horizontal axis, its lowest point on the table, as an
+    /// object propped on a neighbour stands (YCB-Video's banana rests on another object with its
+    /// long axis 28° from the table, a pose no face of its hull gives).
+    Leaning,
 }
 
 impl Placement {
-    /// `tossed` or `arranged`.
+    /// `tossed`, `arranged` or `leaning`.
     pub fn name(self) -> &'static str {
         match self {
             Self::Tossed => "tossed",
             Self::Arranged => "arranged",
+            Self::Leaning => "leaning",
         }
     }
 
     /// Every placement.
-    pub const ALL: [Self; 2] = [Self::Tossed, Self::Arranged];
+    pub const ALL: [Self; 3] = [Self::Tossed, Self::Arranged, Self::Leaning];
 }
+
+/// The share of [`Placement::Leaning`]'s frames that lean.
+pub const LEANING_SHARE: f64 = 1.0 / 3.0;
+
+/// The range of a leaning object's tilt off the face it would rest on (degrees, drawn
+/// uniformly): from barely off the face to half way to a box's next side.
+pub const LEANING_DEG: (f64, f64) = (5.0, 45.0);
 
 /// The least tipping angle (degrees, [`RestingPose::tipping_angle`]) of a face an object
 /// stands on firmly. The YCB scans' boxes stand on their ends at 5–13° (their rounded edges
@@ -102,12 +115,13 @@ const DISTRACTORS: [Primitive; 3] = [
     },
 ];
 
-/// A mesh with the ways it can rest on a table, the cumulative probabilities of those, and the
-/// faces it stands on firmly.
+/// A mesh with the ways it can rest on a table, the cumulative probabilities of those, the
+/// faces it stands on firmly, and its vertices (for a leaning pose's lowest point).
 struct Restable {
     poses: Vec<RestingPose>,
     cumulative: Vec<f64>,
     firm: Vec<usize>,
+    vertices: Vec<Vector3<f64>>,
 }
 
 impl Restable {
@@ -127,12 +141,27 @@ impl Restable {
             poses,
             cumulative,
             firm,
+            vertices: mesh
+                .positions()
+                .iter()
+                .map(|p| p.coords.cast::<f64>())
+                .collect(),
         })
     }
 
     /// A table-from-model pose: a stable face drawn as `placement` says, a random yaw, the
-    /// origin above `(x, y)`. A tossed placement draws two numbers, an arranged one three.
+    /// origin above `(x, y)`; a leaning one tilted off it. A tossed placement draws two
+    /// numbers, an arranged one three, a leaning one four or six.
     fn place<R: Rng>(&self, placement: Placement, rng: &mut R, x: f64, y: f64) -> Isometry3<f64> {
+        if placement == Placement::Leaning {
+            let lean = rng.random::<f64>() < LEANING_SHARE;
+            let resting = self.place(Placement::Arranged, rng, x, y);
+            return if lean {
+                self.tilted(&resting, rng)
+            } else {
+                resting
+            };
+        }
         let set_down = placement == Placement::Arranged && rng.random::<bool>();
         let draw = rng.random::<f64>();
         let face = if set_down && !self.firm.is_empty() {
@@ -145,6 +174,23 @@ impl Restable {
         };
         let yaw = rng.random::<f64>() * std::f64::consts::TAU;
         self.poses[face].on_table(yaw, x, y)
+    }
+
+    /// `resting` tilted by an angle in [`LEANING_DEG`] about a random horizontal axis through
+    /// the model's origin, then lowered or raised until its lowest vertex touches the table.
+    fn tilted<R: Rng>(&self, resting: &Isometry3<f64>, rng: &mut R) -> Isometry3<f64> {
+        let heading = rng.random::<f64>() * std::f64::consts::TAU;
+        let (low, high) = LEANING_DEG;
+        let angle = (low + (high - low) * rng.random::<f64>()).to_radians();
+        let axis = Vector3::new(heading.cos(), heading.sin(), 0.0);
+        let rotation = UnitQuaternion::from_scaled_axis(axis * angle) * resting.rotation;
+        let lowest = self
+            .vertices
+            .iter()
+            .map(|v| (rotation * v).z)
+            .fold(f64::INFINITY, f64::min);
+        let origin = resting.translation.vector;
+        Isometry3::from_parts(Translation3::new(origin.x, origin.y, -lowest), rotation)
     }
 }
 
@@ -686,9 +732,10 @@ mod tests {
     }
 
     /// Tossed, a face comes up as often as its probability says; arranged, half as often plus
-    /// half of a uniform share of the firm faces: frequencies over 20,000 draws of the built-in
-    /// box (whose six faces are all firm) and a can (firm only on its caps), within 4.5
-    /// binomial standard deviations.
+    /// half of a uniform share of the firm faces; leaning, as arranged in the frames that do not
+    /// lean ([`LEANING_SHARE`] lean): frequencies over 20,000 draws of the built-in box (whose
+    /// six faces are all firm) and a can (firm only on its caps), within 4.5 binomial standard
+    /// deviations.
     #[test]
     fn arranged_objects_stand_on_their_firm_faces_as_often_as_on_any() {
         for kind in [crate::ObjectKind::Box, crate::ObjectKind::Can] {
@@ -706,7 +753,8 @@ mod tests {
             for placement in Placement::ALL {
                 let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
                 let draws = 20_000;
-                let mut counts = vec![0usize; restable.poses.len()];
+                // One count per face, the last for frames on none (leaning).
+                let mut counts = vec![0usize; restable.poses.len() + 1];
                 for _ in 0..draws {
                     let pose = restable.place(placement, &mut rng, 0.0, 0.0);
                     let down = pose.inverse_transform_vector(&-Vector3::z());
@@ -714,19 +762,34 @@ mod tests {
                         .poses
                         .iter()
                         .position(|p| (p.normal.into_inner() - down).norm() < 1e-9)
-                        .unwrap();
+                        .unwrap_or(restable.poses.len());
                     counts[face] += 1;
                 }
-                for (i, pose) in restable.poses.iter().enumerate() {
-                    let uniform = if restable.firm.contains(&i) {
-                        1.0 / firm
-                    } else {
-                        0.0
-                    };
-                    let expected = match placement {
-                        Placement::Tossed => pose.probability,
-                        Placement::Arranged => 0.5 * pose.probability + 0.5 * uniform,
-                    };
+                let upright = match placement {
+                    Placement::Leaning => 1.0 - LEANING_SHARE,
+                    _ => 1.0,
+                };
+                let mut expectations: Vec<f64> = restable
+                    .poses
+                    .iter()
+                    .enumerate()
+                    .map(|(i, pose)| {
+                        let uniform = if restable.firm.contains(&i) {
+                            1.0 / firm
+                        } else {
+                            0.0
+                        };
+                        upright
+                            * match placement {
+                                Placement::Tossed => pose.probability,
+                                Placement::Arranged | Placement::Leaning => {
+                                    0.5 * pose.probability + 0.5 * uniform
+                                }
+                            }
+                    })
+                    .collect();
+                expectations.push(1.0 - upright);
+                for (i, &expected) in expectations.iter().enumerate() {
                     let seen = counts[i] as f64 / f64::from(draws);
                     let sigma = (expected * (1.0 - expected) / f64::from(draws)).sqrt();
                     assert!(
@@ -736,6 +799,51 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A leaning box (the built-in one, whose faces are 90° apart) is tilted off the nearest
+    /// face by 5–45°, spread over that range, and touches the table without passing through it:
+    /// the lowest corner of its bounding box (from the mesh's bounds, not its vertex list) at
+    /// height 0, its origin above the point asked for.
+    #[test]
+    fn leaning_objects_tilt_off_a_face_and_touch_the_table() {
+        let object = crate::SynthObject::built_in(crate::ObjectKind::Box).unwrap();
+        let restable = Restable::new(&object.mesh).unwrap();
+        let corners = box_corners(&object.mesh);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(17);
+        let mut tilts = Vec::new();
+        for _ in 0..3_000 {
+            let pose = restable.place(Placement::Leaning, &mut rng, 0.03, -0.02);
+            let down = pose.inverse_transform_vector(&-Vector3::z());
+            let nearest = restable
+                .poses
+                .iter()
+                .map(|p| p.normal.angle(&down).to_degrees())
+                .fold(f64::INFINITY, f64::min);
+            let lowest = corners
+                .iter()
+                .map(|c| (pose * c).z)
+                .fold(f64::INFINITY, f64::min);
+            assert!(lowest.abs() < 1e-9, "lowest corner at {lowest}");
+            let origin = pose.translation.vector;
+            assert!((origin.x - 0.03).abs() < 1e-12 && (origin.y + 0.02).abs() < 1e-12);
+            if nearest > 1e-6 {
+                assert!(
+                    (LEANING_DEG.0 - 1e-6..=LEANING_DEG.1 + 1e-6).contains(&nearest),
+                    "tilted {nearest}°"
+                );
+                tilts.push(nearest);
+            }
+        }
+        // A third lean: 1,000 expected, binomial σ 26.
+        assert!((880..=1_120).contains(&tilts.len()), "{} lean", tilts.len());
+        // Uniform over 5–45°: mean 25°, σ of the mean 11.5° / √1000 = 0.4°.
+        let mean = tilts.iter().sum::<f64>() / tilts.len() as f64;
+        assert!((mean - 25.0).abs() < 1.6, "mean tilt {mean}°");
+        let (least, most) = tilts
+            .iter()
+            .fold((f64::INFINITY, 0.0f64), |(l, m), &t| (l.min(t), m.max(t)));
+        assert!(least < 6.0 && most > 44.0, "{least}–{most}°");
     }
 
     #[test]

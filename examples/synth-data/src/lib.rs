@@ -47,7 +47,10 @@ mod synthesize;
 pub mod trials;
 
 pub use error::SynthError;
-pub use frame::{FIRM_TIPPING_DEG, Frame, FrameRenderer, FrameStyle, Placement, ViewRange};
+pub use frame::{
+    FIRM_TIPPING_DEG, Frame, FrameRenderer, FrameStyle, LEANING_DEG, LEANING_SHARE, Placement,
+    ViewRange,
+};
 pub use objects::{ObjectKind, SynthObject};
 pub use randomize::Randomization;
 pub use synthesize::{SYNTH_OPTIONS_FILE, SynthOptions, SynthSummary, Variant, synthesize};

@@ -6,7 +6,7 @@ use anyhow::{Context, Result};
 use bop_dataset::{BopDataset, camera_from_json, read_json};
 use depth_render::SensorPreset;
 use ipdf::pipeline::{MeshRequest, Plan, Preset, RealSplit, run_mesh_pipeline, run_pipeline};
-use synth_data::Randomization;
+use synth_data::{Placement, Randomization};
 
 use super::choice::choice;
 use super::{check_distance, load_mesh};
@@ -71,6 +71,11 @@ pub struct PipelineArgs {
     /// list of `lights`, `backgrounds`, `textures` and `camera` (see `ipdf synth --randomize`).
     #[arg(long, default_value = "all", value_name = "PARTS", requires = "mesh")]
     pub randomize: String,
+    /// How the object rests in `--mesh`'s renders (see `ipdf synth --placement`): `arranged`,
+    /// or `leaning` where the user's scenes prop objects on one another.
+    #[arg(long, value_parser = choice::<Placement>(), default_value = "arranged",
+          requires = "mesh")]
+    pub placement: Placement,
     /// A real BOP dataset to score `--mesh`'s models on (its `models/` gives the object's
     /// symmetries and ADD(-S) points; nothing of it is used in training).
     #[arg(long, requires_all = ["mesh", "obj_id"])]
@@ -112,6 +117,7 @@ pub fn run(args: &PipelineArgs, seed: u64) -> Result<serde_json::Value> {
         camera_file,
         distance: (near, far),
         randomization: Randomization::parse(&args.randomize)?,
+        placement: args.placement,
         real,
     };
     let plan = plan(args, args.preset.mesh_plan());

@@ -85,9 +85,10 @@ pub struct SynthArgs {
     #[arg(long, default_value_t = 0.0)]
     pub roll: f64,
     /// How the object comes to rest on the table: `tossed` (each face of its convex hull by
-    /// the chance of landing on it) or `arranged` (half the frames on a face drawn uniformly from
+    /// the chance of landing on it), `arranged` (half the frames on a face drawn uniformly from
     /// those it stands on firmly, as objects set down for a camera stand: boxes on their ends,
-    /// bottles upright).
+    /// bottles upright) or `leaning` (arranged, a third of the frames tilted 5–45° off the face,
+    /// as objects propped on a neighbour in clutter).
     #[arg(long, value_parser = choice::<Placement>(), default_value = "tossed")]
     pub placement: Placement,
     /// Domain randomisation, drawn per frame: `all` (alone: `--randomize`) or a comma list of

@@ -254,7 +254,7 @@ pub struct PipelineConfig {
 pub const CONFIG_FILE: &str = "pipeline_config.json";
 
 /// The keys of [`PipelineConfig`] set by command-line flags, and the flags.
-const FLAGS: [(&str, &str); 15] = [
+const FLAGS: [(&str, &str); 16] = [
     ("preset", "--preset"),
     ("seed", "--seed"),
     ("mesh", "--mesh"),
@@ -262,6 +262,7 @@ const FLAGS: [(&str, &str); 15] = [
     ("camera", "--camera"),
     ("distance_m", "--distance"),
     ("randomize", "--randomize"),
+    ("placement", "--placement"),
     ("real", "--real, --real-split and --obj-id"),
     ("frames_per_object", "--frames"),
     ("val_frames_per_object", "--val-frames"),

@@ -61,6 +61,8 @@ pub struct MeshRequest {
     pub distance: (f64, f64),
     /// What of the renders' look is drawn at random ([`Randomization::ALL`]: everything).
     pub randomization: Randomization,
+    /// How the object rests in the renders.
+    pub placement: Placement,
     /// The real split to score on, if any.
     pub real: Option<RealSplit>,
 }
@@ -84,6 +86,8 @@ pub struct MeshConfig {
     /// The parts of the renders' look drawn at random (`lights`, `backgrounds`, `textures`,
     /// `camera`).
     pub randomize: Vec<String>,
+    /// How the object rests in the renders (`arranged`, …).
+    pub placement: String,
     /// The real split scored, if any.
     pub real: Option<RealSplit>,
     /// The dataset trained on.
@@ -132,6 +136,7 @@ pub fn run_mesh_pipeline(
             .into_iter()
             .map(String::from)
             .collect(),
+        placement: request.placement.name().into(),
         real: request.real.clone(),
         training_data: "randomised renders".into(),
     };
@@ -184,7 +189,7 @@ fn synthesize_renders(
                 distance: request.distance,
                 off_centre: 1.0,
                 roll_deg: 30.0,
-                placement: Placement::Arranged,
+                placement: request.placement,
                 ..ViewRange::default()
             },
             distractors: 2,
