@@ -363,6 +363,16 @@ fn pose_runs_train_score_and_predict_translations() {
         let entry = finite(&refined["cam_R_m2c"][i]);
         assert!((entry - matrix[(i / 3, i % 3)]).abs() < 1e-9, "{refined}");
     }
+    // Compared in a stereo camera's expected errors (`--sensor realsense`), the pose found is
+    // still on the box's surface, and its score is counted in other units than the Kinect's.
+    let stereo = [&with_depth[..], &["--sensor", "realsense"]].concat();
+    let stereo = ipdf_json(&predict_args(&run, &rgb, &box_mask, &out, &stereo));
+    let stereo = &stereo["refined_with_depth"];
+    assert!(
+        (vector(&stereo["cam_t_m2c"]) - truth).norm() < diameter,
+        "{stereo} against {truth}"
+    );
+    assert_ne!(stereo["score"], refined["score"], "{stereo} {refined}");
     // A depth image with no reading inside the mask: predict still answers, with neither the
     // fitted translation nor the refined pose.
     let blank_depth = dir.path().join("blank_depth.png");

@@ -7,6 +7,7 @@ use std::path::PathBuf;
 
 use anyhow::{Result, bail};
 use bop_dataset::{write_atomically, write_json};
+use depth_render::SensorPreset;
 use ipdf::eval::instances::markdown;
 use ipdf::eval::translation::is_translation_run;
 use ipdf::eval::{
@@ -66,6 +67,10 @@ pub struct EvalArgs {
     /// them apart and the image where it cannot (0: off; 8 is the mesh pipeline's).
     #[arg(long, default_value_t = 0)]
     pub depth_hypotheses: usize,
+    /// The depth camera of the frames, whose expected errors `--depth-hypotheses` compares the
+    /// poses in (as `ipdf label --sensor`).
+    #[arg(long, value_parser = choice::<SensorPreset>(), default_value = "kinect")]
+    pub sensor: SensorPreset,
     /// Write the scores here (JSON), each instance's as a Markdown table beside it (`.md`).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -86,6 +91,7 @@ pub fn run(args: &EvalArgs) -> Result<serde_json::Value> {
         per_instance: true,
         truth: args.truth,
         depth_hypotheses: args.depth_hypotheses,
+        sensor: args.sensor,
         ..EvalRequest::new(args.checkpoint.clone(), &args.split, args.level)
     };
     let progress = bar(0, "images");

@@ -7,11 +7,12 @@
 use std::path::{Path, PathBuf};
 
 use super::check_extension;
+use super::choice::choice;
 use anyhow::{Context, Result, bail};
 use bop_dataset::{
     BopCamera, Intrinsics, camera_from_json, read_depth, read_json, read_mask, write_json,
 };
-use depth_render::{PinholeCamera, Scene, TriangleMesh, load_mesh};
+use depth_render::{PinholeCamera, Scene, SensorPreset, TriangleMesh, load_mesh};
 use ipdf::depth_fit::{MIN_PIXELS, fit_translation, pose_from_depth};
 use ipdf::eval::translation::{
     self, is_translation_run, pose_translation_dir, pose_translation_model,
@@ -62,6 +63,10 @@ pub struct PredictArgs {
     /// the model where it cannot (`"refined_with_depth"`; the library's `ipdf::depth_fit`).
     #[arg(long)]
     pub depth: Option<PathBuf>,
+    /// The depth camera of `--depth`, whose expected errors the rotation hypotheses are
+    /// compared in (as `ipdf label --sensor`).
+    #[arg(long, value_parser = choice::<SensorPreset>(), default_value = "kinect")]
+    pub sensor: SensorPreset,
     /// Grid level of the rotation distribution (4: 294,912 rotations).
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(0..=5))]
     pub level: u8,
@@ -237,6 +242,7 @@ struct DepthView {
     mesh: TriangleMesh,
     scene: Scene,
     obj_id: u32,
+    sensor: SensorPreset,
 }
 
 impl DepthView {
@@ -246,12 +252,15 @@ impl DepthView {
     }
 
     /// The pose found from `hypotheses` and the depth ([`pose_from_depth`], the labeller's
-    /// default options).
+    /// default options but the sensor).
     fn refine(
         &self,
         hypotheses: &[UnitQuaternion<f64>],
     ) -> Result<Option<pseudo_label::SeededPose>> {
-        let options = pseudo_label::LabelOptions::default();
+        let options = pseudo_label::LabelOptions {
+            sensor: self.sensor,
+            ..pseudo_label::LabelOptions::default()
+        };
         let model = pseudo_label::ObjectModel::new(self.obj_id, &self.mesh, &options)?;
         Ok(pose_from_depth(
             &model,
@@ -317,6 +326,7 @@ fn depth_view(
         scene: Scene::new(std::slice::from_ref(&mesh)),
         mesh,
         obj_id: info.obj_id,
+        sensor: args.sensor,
     })
 }
 

@@ -10,6 +10,7 @@ pub mod translation;
 use std::path::{Path, PathBuf};
 
 use bop_dataset::{BopDataset, Progress, RotationRepairs};
+use depth_render::SensorPreset;
 use ipdf_model::rotation::{ImplicitPdf, UNDER_RESOLUTION_LIMIT};
 use ipdf_model::translation::TranslationPdf;
 use ipdf_model::{RefineOptions, default_device};
@@ -83,6 +84,9 @@ pub struct EvalRequest {
     /// hypotheses and the frame's depth is scored beside the models' own
     /// ([`surface::depth_refined_poses`]; 0: none).
     pub depth_hypotheses: usize,
+    /// The depth camera of the split's frames: its expected errors are the unit in which that
+    /// pose is compared with the depth.
+    pub sensor: SensorPreset,
 }
 
 impl EvalRequest {
@@ -103,6 +107,7 @@ impl EvalRequest {
             per_instance: false,
             truth: Truth::GroundTruth,
             depth_hypotheses: 0,
+            sensor: SensorPreset::Kinect,
         }
     }
 
@@ -344,6 +349,7 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
                 info.obj_id,
                 &examples,
                 &evaluation.hypotheses,
+                request.sensor,
             )?;
             let rotations: Vec<_> = poses.iter().map(|p| p.map(|p| p.rotation)).collect();
             let vsd = surface::rotation_vsd(

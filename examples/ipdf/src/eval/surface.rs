@@ -16,7 +16,9 @@ use std::path::PathBuf;
 use bop_dataset::{
     BopDataset, FileError, Image, Intrinsics, read_depth, read_mask, read_scene_camera,
 };
-use depth_render::{Instance, PinholeCamera, Scene, Window, visible_surface_discrepancy};
+use depth_render::{
+    Instance, PinholeCamera, Scene, SensorPreset, Window, visible_surface_discrepancy,
+};
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 
 use pseudo_label::{LabelOptions, ObjectModel};
@@ -118,9 +120,9 @@ pub fn depth_fitted_translations(
 
 /// Each instance's pose found from its rotation `hypotheses` (the most likely first) and the
 /// depth image of its frame in `split` of `dataset` inside the instance's visible mask
-/// ([`crate::depth_fit::pose_from_depth`] with the labeller's default options: object
-/// `obj_id`'s mesh, a Kinect's expected errors moved to the depth's noise, every other pixel),
-/// translation in mm. `None` for an instance whose frame has no depth image or no mask, or
+/// ([`crate::depth_fit::pose_from_depth`] with the labeller's default options but `sensor`:
+/// object `obj_id`'s mesh, the sensor's expected errors moved to the depth's noise, every other
+/// pixel), translation in mm. `None` for an instance whose frame has no depth image or no mask, or
 /// whose masked depth cannot be registered (too few points, another scale).
 pub fn depth_refined_poses(
     dataset: &BopDataset,
@@ -128,8 +130,12 @@ pub fn depth_refined_poses(
     obj_id: u32,
     examples: &Examples,
     hypotheses: &[Vec<UnitQuaternion<f64>>],
+    sensor: SensorPreset,
 ) -> Result<Vec<Option<Isometry3<f64>>>, Error> {
-    let options = LabelOptions::default();
+    let options = LabelOptions {
+        sensor,
+        ..LabelOptions::default()
+    };
     let model = ObjectModel::new(obj_id, &object_mesh(dataset, obj_id, 0.001)?, &options)?;
     let mut frames = FrameDepths::new(dataset, split);
     let mut refined = Vec::with_capacity(hypotheses.len());
