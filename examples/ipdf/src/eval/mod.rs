@@ -85,7 +85,7 @@ pub struct EvalRequest {
     /// ([`surface::depth_refined_poses`]; 0: none).
     pub depth_hypotheses: usize,
     /// The depth camera of the split's frames: its expected errors are the unit in which that
-    /// pose is compared with the depth.
+    /// pose is compared with the depth (default: the labeller's).
     pub sensor: SensorPreset,
 }
 
@@ -107,7 +107,7 @@ impl EvalRequest {
             per_instance: false,
             truth: Truth::GroundTruth,
             depth_hypotheses: 0,
-            sensor: SensorPreset::Kinect,
+            sensor: pseudo_label::LabelOptions::default().sensor,
         }
     }
 

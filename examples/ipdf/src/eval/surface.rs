@@ -36,8 +36,8 @@ pub const VSD_TAU_M: f32 = 0.02;
 pub const VSD_CORRECT: f64 = 0.3;
 
 /// Each instance's VSD between its rotation in `rotations` (its most likely one, or the
-/// rotation of a pose refined with depth) and its ground-truth pose, judged against the depth image of its frame in `split` of `dataset`, with object
-/// `obj_id`'s mesh. The rotation is placed so that the centre of the mesh's bounding box lies
+/// rotation of a pose refined with depth) and its ground-truth pose, judged against the depth
+/// image of its frame in `split` of `dataset`, with object `obj_id`'s mesh. The rotation is placed so that the centre of the mesh's bounding box lies
 /// where the truth puts it: a rotation says nothing of where the object is, and a box turned
 /// half about its own centre shows the surface the truth shows even where the mesh's origin is
 /// off that centre. `None` for an instance without a rotation, whose frame has no depth image,
@@ -122,8 +122,8 @@ pub fn depth_fitted_translations(
 /// depth image of its frame in `split` of `dataset` inside the instance's visible mask
 /// ([`crate::depth_fit::pose_from_depth`] with the labeller's default options but `sensor`:
 /// object `obj_id`'s mesh, the sensor's expected errors moved to the depth's noise, every other
-/// pixel), translation in mm. `None` for an instance whose frame has no depth image or no mask, or
-/// whose masked depth cannot be registered (too few points, another scale).
+/// pixel), translation in mm. `None` for an instance whose frame has no depth image or no mask,
+/// or whose masked depth cannot be registered (too few points, another scale).
 pub fn depth_refined_poses(
     dataset: &BopDataset,
     split: &str,

@@ -206,6 +206,13 @@ mod comma_separated {
 }
 
 impl Plan {
+    /// The depth sensor the labeller and the pose refined with depth count errors in: the
+    /// renders' sensor, or with clean depth the labeller's default.
+    pub fn depth_sensor(&self) -> SensorPreset {
+        self.sensor
+            .unwrap_or(pseudo_label::LabelOptions::default().sensor)
+    }
+
     /// Epochs the models of `target` train for.
     pub fn epochs_of(&self, target: Target) -> u64 {
         match target {

@@ -290,7 +290,7 @@ fn score(
         obj_id: Some(real.obj_id),
         per_instance: true,
         depth_hypotheses: DEPTH_HYPOTHESES,
-        sensor: plan.sensor.unwrap_or(SensorPreset::Kinect),
+        sensor: plan.depth_sensor(),
         ..EvalRequest::new(model.to_path_buf(), &real.split, plan.eval_level)
     };
     let path = out.join("eval_real.json");

@@ -228,11 +228,10 @@ fn label_split(data: &Path, plan: &Plan, seed: u64) -> Result<(), Error> {
         shard: Shard::ALL,
         relabel: false,
     };
-    let defaults = LabelOptions::default();
     let options = LabelOptions {
         seed,
-        sensor: plan.sensor.unwrap_or(defaults.sensor),
-        ..defaults
+        sensor: plan.depth_sensor(),
+        ..LabelOptions::default()
     };
     let progress = bar(dataset.image_count("train")? as u64, "images");
     label_dataset(&dataset, &dataset_options, &options, &progress)?;
