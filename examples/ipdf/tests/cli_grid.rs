@@ -119,6 +119,34 @@ fn unknown_names_of_library_values_name_the_flag() {
             "--preset",
             "huge",
         ),
+        (
+            &["synth", "--out", "x", "--placement", "upside-down"][..],
+            "--placement",
+            "upside-down",
+        ),
+        (
+            &[
+                "pipeline",
+                "--out",
+                "x",
+                "--mesh",
+                "m.ply",
+                "--placement",
+                "propped",
+            ][..],
+            "--placement",
+            "propped",
+        ),
+        (
+            &["eval", "--checkpoint", "x", "--sensor", "lidar"][..],
+            "--sensor",
+            "lidar",
+        ),
+        (
+            &["predict", "--checkpoint", "x", "--sensor", "lidar"][..],
+            "--sensor",
+            "lidar",
+        ),
     ] {
         let out = ipdf(args);
         assert_eq!(out.status.code(), Some(2), "{args:?}");
