@@ -1,6 +1,6 @@
 """Baseline for the `grid/generate` criterion benches: the same SO(3) grids with healpy + numpy.
 
-Two ways, both timed as the best of several runs on this machine:
+Two ways, both timed as the best of several runs on the machine that runs the script:
 - `ipdf_reference`: the construction of the Implicit-PDF reference implementation
   (`generate_healpix_grid`: healpy pix2vec, then per tilt a product of Euler rotation matrices),
   with numpy in place of tensorflow-graphics; N×3×3 float64 matrices.
