@@ -195,6 +195,38 @@ fn a_mesh_run_is_scored_on_the_real_frames() {
 }
 
 #[test]
+fn the_gpu_preset_runs_the_paper_networks_at_the_size_measured_on_a_gpu() {
+    let setup = Setup::new();
+    // A run records its settings before its first stage: a file in the way of the renders
+    // stops it right after.
+    std::fs::create_dir_all(&setup.out).unwrap();
+    std::fs::write(setup.out.join("data"), "in the way").unwrap();
+    let words = [
+        "pipeline",
+        "--mesh",
+        s(&setup.mesh),
+        "--camera",
+        s(&setup.camera),
+        "--out",
+        s(&setup.out),
+        "--preset",
+        "gpu",
+    ];
+    assert!(!ipdf(&words).status.success());
+    let config = read_json(&setup.out.join("pipeline_config.json"));
+    // docs/results.md, "One mesh on a GPU": ResNet-18 on 224-pixel crops, a 4 × 256 head,
+    // level-2 queries at 1e-4; 3,000 renders, 12 rotation and 4 translation epochs of 200 × 64.
+    let expected = json!({"preset": "gpu", "encoder": "resnet18", "input_size": 224,
+        "head": "256,256,256,256", "query_level": 2, "learning_rate": 0.0001,
+        "frames_per_object": 3000, "val_frames_per_object": 100, "epochs": 12,
+        "translation_epochs": 4, "steps_per_epoch": 200, "batch_size": 64,
+        "occlusion": [true], "blur": 1.5, "backbones": []});
+    for (key, value) in expected.as_object().unwrap() {
+        assert_eq!(&config[key], value, "{key}");
+    }
+}
+
+#[test]
 fn a_mesh_run_refuses_what_it_cannot_use() {
     let setup = Setup::new();
     let camera = &setup.camera;

@@ -44,7 +44,7 @@ named!(
     ipdf::training::Target,
     ipdf::eval::Truth,
     ipdf::npy::RotationFormat,
-    ipdf::pipeline::Preset,
+    ipdf::pipeline::Preset => ipdf::pipeline::Preset::description,
 );
 
 /// The value parser of `T`: one of its names.

@@ -14,10 +14,8 @@ use super::{check_distance, load_mesh};
 /// Arguments of `ipdf pipeline`.
 #[derive(Debug, clap::Args)]
 pub struct PipelineArgs {
-    /// How big a run: `quick` (minutes on a laptop CPU: 800 training frames per object, a small
-    /// CNN on 48-pixel crops) or `paper` (the paper's scale, GPU advised: 20,000 frames per
-    /// variant, ResNet-18 on 224-pixel crops, 50 epochs of 200 steps of 64; with and without
-    /// occlusion, and two more backbones).
+    /// How big a run (each preset's settings: docs/guide.md, "The presets"; the flags below
+    /// override them).
     #[arg(long, value_parser = choice::<Preset>(), default_value = "quick")]
     pub preset: Preset,
     /// Run folder (a rerun with the same settings skips finished stages; one with other
@@ -34,7 +32,7 @@ pub struct PipelineArgs {
     #[arg(long)]
     pub texture_frames: Option<usize>,
     /// The depth camera whose readings the datasets' depth imitates and the labelling expects,
-    /// instead of the preset's (both: a Kinect v1).
+    /// instead of the preset's (every preset: a Kinect v1).
     #[arg(long, value_parser = choice::<SensorPreset>(), conflicts_with = "clean_depth")]
     pub sensor: Option<SensorPreset>,
     /// Clean rendered depth instead of a sensor's readings.
