@@ -147,6 +147,16 @@ fn unknown_names_of_library_values_name_the_flag() {
             "--sensor",
             "lidar",
         ),
+        (
+            &["eval", "--checkpoint", "x", "--views", "9"][..],
+            "--views",
+            "9",
+        ),
+        (
+            &["predict", "--checkpoint", "x", "--views", "twelve"][..],
+            "--views",
+            "twelve",
+        ),
     ] {
         let out = ipdf(args);
         assert_eq!(out.status.code(), Some(2), "{args:?}");

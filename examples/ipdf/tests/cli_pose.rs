@@ -373,6 +373,18 @@ fn pose_runs_train_score_and_predict_translations() {
         "{stereo} against {truth}"
     );
     assert_ne!(stereo["score"], refined["score"], "{stereo} {refined}");
+    // Averaged over the crop and its 8 test-time views (`--views 8`), the rotation model's
+    // image term is another, so its answer moves; the pose found with depth still lies on the
+    // box's surface.
+    let viewed = [&with_depth[..], &["--views", "8"]].concat();
+    let viewed = ipdf_json(&predict_args(&run, &rgb, &box_mask, &out, &viewed));
+    let one_view = &fitted["argmax"]["quaternion_wxyz"];
+    assert_ne!(&viewed["argmax"]["quaternion_wxyz"], one_view, "{viewed}");
+    let viewed_t = vector(&viewed["refined_with_depth"]["cam_t_m2c"]);
+    assert!(
+        (viewed_t - truth).norm() < diameter,
+        "{viewed} against {truth}"
+    );
     // A depth image with no reading inside the mask: predict still answers, with neither the
     // fitted translation nor the refined pose.
     let blank_depth = dir.path().join("blank_depth.png");

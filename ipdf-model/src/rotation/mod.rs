@@ -11,7 +11,8 @@
 //! - [`Predictor`]: the normalised distribution on a grid level (chunked), hierarchical
 //!   refinement ([`crate::refine`]), `ln p(R | I)` at any rotation
 //!   ([`Predictor::log_densities`]), a bfloat16 head for speed ([`Precision`]), and the most
-//!   likely rotation by gradient ascent ([`Predictor::argmax`]).
+//!   likely rotation by gradient ascent ([`Predictor::argmax`]); its image term optionally
+//!   averaged over test-time views of the crop ([`crop_views`], [`Predictor::with_views`]).
 //!
 //! The same rooms as [`crate::translation`]: `model`, `train`, `fit`, `predict`, `checkpoint`,
 //! and the rotation's own `loss` (query sets over SO(3)).
@@ -21,6 +22,7 @@ mod loss;
 mod model;
 mod predict;
 mod train;
+mod views;
 
 pub use crate::encoding::{encode_rotations, rotations_to_tensor};
 pub use fit::{LabelledImages, validation_llh};
@@ -28,3 +30,4 @@ pub use loss::{LabelLoss, QuerySampling, label_set_from_matrices, set_nll};
 pub use model::ImplicitPdf;
 pub use predict::{Argmax, ArgmaxOptions, Precision, Predictor, UNDER_RESOLUTION_LIMIT};
 pub use train::{TrainOptions, Trainer};
+pub use views::{MAX_EXTRA_VIEWS, VIEW_SHIFT, crop_views};

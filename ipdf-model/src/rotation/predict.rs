@@ -11,6 +11,7 @@ use crate::ModelError;
 use crate::encoding::{encode_rotations, rotations_to_tensor};
 use crate::head::Head;
 use crate::refine::{CellMasses, RefineOptions, refine};
+use crate::rotation::views::{crop_views, validate_views};
 
 /// Rotations evaluated per network call. Activations of `CHUNK · H` floats (4 MiB for H = 256)
 /// stay in cache between layers: 4,096 took half the time of 32,768 (`make bench`,
@@ -92,6 +93,7 @@ pub struct Predictor<'m> {
     head: Head,
     grids: HashMap<u8, Grid>,
     query_terms: HashMap<u8, Tensor>,
+    extra_views: usize,
 }
 
 /// The [`Predictor::under_resolution`] above which a grid's level is too coarse for a model:
@@ -119,7 +121,17 @@ impl<'m> Predictor<'m> {
             head: model.head().to_kind(kind),
             grids: HashMap::new(),
             query_terms: HashMap::new(),
+            extra_views: 0,
         }
+    }
+
+    /// The same predictor, each crop's image term the mean over the crop and its first `extra`
+    /// test-time views ([`crop_views`]; 0: the crop alone). More than
+    /// [`MAX_EXTRA_VIEWS`](crate::rotation::MAX_EXTRA_VIEWS) is refused.
+    pub fn with_views(mut self, extra: usize) -> Result<Self, ModelError> {
+        validate_views(extra)?;
+        self.extra_views = extra;
+        Ok(self)
     }
 
     /// The query term `[N, H]` of rotation matrices `[N, 9]` in the predictor's precision.
@@ -140,7 +152,8 @@ impl<'m> Predictor<'m> {
         })
     }
 
-    /// The image term `[1, H]` of one crop (`[3, S, S]` or `[1, 3, S, S]`, values in `[0, 1]`).
+    /// The image term `[1, H]` of one crop (`[3, S, S]` or `[1, 3, S, S]`, values in `[0, 1]`),
+    /// averaged over its views ([`Predictor::with_views`]).
     pub fn image_term(&self, image: &Tensor) -> Result<Tensor, ModelError> {
         let batch = if image.dim() == 3 {
             image.unsqueeze(0)
@@ -154,7 +167,12 @@ impl<'m> Predictor<'m> {
                 got: format!("{:?}", image.size()),
             });
         }
-        tch::no_grad(|| self.model.image_term(&batch, false))
+        tch::no_grad(|| {
+            let terms = self
+                .model
+                .image_term(&crop_views(&batch, self.extra_views), false)?;
+            Ok(terms.mean_dim(0, true, terms.kind()))
+        })
     }
 
     fn grid(&mut self, level: u8) -> Result<&Grid, ModelError> {

@@ -71,6 +71,11 @@ pub struct EvalArgs {
     /// poses in (as `ipdf label --sensor`).
     #[arg(long, value_parser = choice::<SensorPreset>(), default_value = "kinect")]
     pub sensor: SensorPreset,
+    /// Average the rotation model's image term over each crop and this many test-time views
+    /// of it, zoomed or shifted by 3% of its half-side (at most 8; 0: the crop alone, as the
+    /// paper scores; 8 is the mesh pipeline's).
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=8))]
+    pub views: u8,
     /// Write the scores here (JSON), each instance's as a Markdown table beside it (`.md`).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -92,6 +97,7 @@ pub fn run(args: &EvalArgs) -> Result<serde_json::Value> {
         truth: args.truth,
         depth_hypotheses: args.depth_hypotheses,
         sensor: args.sensor,
+        views: args.views.into(),
         ..EvalRequest::new(args.checkpoint.clone(), &args.split, args.level)
     };
     let progress = bar(0, "images");

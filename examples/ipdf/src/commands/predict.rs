@@ -67,6 +67,11 @@ pub struct PredictArgs {
     /// compared in (as `ipdf label --sensor`).
     #[arg(long, value_parser = choice::<SensorPreset>(), default_value = "kinect")]
     pub sensor: SensorPreset,
+    /// Average the rotation model's image term over the crop and this many test-time views of
+    /// it, zoomed or shifted by 3% of its half-side (at most 8; 0: the crop alone; 8 is what
+    /// the mesh pipeline scores with).
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=8))]
+    pub views: u8,
     /// Grid level of the rotation distribution (4: 294,912 rotations).
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(0..=5))]
     pub level: u8,
@@ -182,7 +187,7 @@ fn predict_rotation(
     args: &PredictArgs,
 ) -> Result<(Value, UnitQuaternion<f64>, Vec<UnitQuaternion<f64>>)> {
     let crop = crop_tensor(&crop.pixels, model.config().input_size as usize);
-    let mut predictor = Predictor::new(model);
+    let mut predictor = Predictor::new(model).with_views(args.views.into())?;
     // The encoder runs once: the grid's masses and the argmax share the crop's image term.
     let image_term = predictor.image_term(&crop)?;
     let masses = predictor.probabilities_for(&image_term, args.level)?;

@@ -72,7 +72,7 @@ pub fn run(args: &VizArgs) -> Result<serde_json::Value> {
         match (&args.rgb, &args.mask, args.scene, args.image) {
             (Some(rgb), Some(mask), _, _) => {
                 let crop = crop_files(rgb, mask, size)?;
-                distribution_figure(&model, &crop.pixels, &[], args.level, &title)?
+                distribution_figure(&model, &crop.pixels, &[], args.level, 0, &title)?
             }
             (_, _, Some(scene_id), Some(im_id)) => {
                 let dataset = info.dataset(args.dataset.as_deref())?;
@@ -107,7 +107,7 @@ pub fn run(args: &VizArgs) -> Result<serde_json::Value> {
                     &scene.visible_mask_path(im_id, args.instance),
                     size,
                 )?;
-                distribution_figure(&model, &crop.pixels, &truth, args.level, &title)?
+                distribution_figure(&model, &crop.pixels, &truth, args.level, 0, &title)?
             }
             _ => bail!("--checkpoint needs --rgb and --mask, or --scene and --image"),
         }

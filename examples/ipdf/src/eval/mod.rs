@@ -87,6 +87,9 @@ pub struct EvalRequest {
     /// The depth camera of the split's frames: its expected errors are the unit in which that
     /// pose is compared with the depth (default: the labeller's).
     pub sensor: SensorPreset,
+    /// Test-time views of each crop whose image terms the rotation model averages
+    /// ([`ipdf_model::rotation::Predictor::with_views`]; 0: the crop alone, as the paper).
+    pub views: usize,
 }
 
 impl EvalRequest {
@@ -108,6 +111,7 @@ impl EvalRequest {
             truth: Truth::GroundTruth,
             depth_hypotheses: 0,
             sensor: pseudo_label::LabelOptions::default().sensor,
+            views: 0,
         }
     }
 
@@ -191,6 +195,9 @@ pub struct EvalResult {
     pub level: u8,
     /// `hierarchical` or `dense`.
     pub evaluation: String,
+    /// Test-time views averaged per crop beside the crop itself ([`EvalRequest::views`]).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub views: usize,
     /// The most network queries one crop took.
     pub queries_per_image: usize,
     /// Crops scored.
@@ -293,7 +300,7 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
         hypotheses: if refine { request.depth_hypotheses } else { 0 },
         hypothesis_spacing: HYPOTHESIS_SPACING_DEG.to_radians(),
     };
-    let evaluation = evaluate_rotations(&model, &examples, &grid, picks, progress)?;
+    let evaluation = evaluate_rotations(&model, &examples, &grid, request.views, picks, progress)?;
     let scores = evaluation.scores;
     let (translation, pose, poses) = match &translation_model {
         Some(translation_model) => {
@@ -401,6 +408,7 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
             "hierarchical"
         }
         .into(),
+        views: request.views,
         queries_per_image: scores.queries_per_image,
         images: scores.images,
         llh: scores.llh,
@@ -443,4 +451,8 @@ pub(crate) fn object_mesh(
 /// The file the pipeline keeps a run's scores at `level` in.
 pub fn eval_file(run_dir: &Path, level: u8) -> PathBuf {
     run_dir.join(format!("eval_level{level}.json"))
+}
+
+fn is_zero(count: &usize) -> bool {
+    *count == 0
 }

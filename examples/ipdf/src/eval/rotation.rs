@@ -44,7 +44,7 @@ pub fn evaluate(
     grid: &RefineOptions,
     progress: &dyn Progress,
 ) -> Result<Scores, Error> {
-    Ok(evaluate_rotations(model, examples, grid, Picks::default(), progress)?.scores)
+    Ok(evaluate_rotations(model, examples, grid, 0, Picks::default(), progress)?.scores)
 }
 
 /// Each crop's scores beside the means: what [`evaluate_rotations`] returns.
@@ -78,16 +78,18 @@ pub struct Picks {
 
 /// [`evaluate`], with each crop's LLH, MAAD and Recall MAAD, and the rotations `picks` asks
 /// for: each crop's most likely rotation ([`Predictor::argmax_from`] on the same distribution),
-/// its rotation hypotheses. Each crop's image term is computed once.
+/// its rotation hypotheses. Each crop's image term is computed once, averaged over the crop
+/// and `views` test-time views of it ([`Predictor::with_views`]).
 pub fn evaluate_rotations(
     model: &ImplicitPdf,
     examples: &Examples,
     grid: &RefineOptions,
+    views: usize,
     picks: Picks,
     progress: &dyn Progress,
 ) -> Result<RotationEvaluation, Error> {
     let truths = examples.required_truth_sets()?;
-    let mut predictor = Predictor::new(model);
+    let mut predictor = Predictor::new(model).with_views(views)?;
     let argmax_options = ArgmaxOptions {
         refine: *grid,
         ..ArgmaxOptions::default()
@@ -154,16 +156,20 @@ pub fn cell_distribution(masses: &CellMasses) -> Result<Distribution, Error> {
 }
 
 /// The Implicit-PDF figure of `model`'s distribution for an 8-bit crop (`[3, S, S]`) on the
-/// `level` grid, with `truth` drawn over it.
+/// `level` grid, its image term averaged over `views` test-time views, with `truth` drawn
+/// over it.
 pub fn distribution_figure(
     model: &ImplicitPdf,
     crop: &[u8],
     truth: &[nalgebra::UnitQuaternion<f64>],
     level: u8,
+    views: usize,
     title: &str,
 ) -> Result<image::RgbImage, Error> {
     let size = model.config().input_size as usize;
     let grid = Grid::new(level).map_err(|e| Error::option("level", e.to_string()))?;
-    let masses = Predictor::new(model).probabilities(&crop_tensor(crop, size), level)?;
+    let masses = Predictor::new(model)
+        .with_views(views)?
+        .probabilities(&crop_tensor(crop, size), level)?;
     plot_distribution(crop, size, &grid.rotations(), &masses, truth, title)
 }

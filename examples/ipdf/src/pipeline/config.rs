@@ -317,6 +317,10 @@ const FLAGS: [(&str, &str); 16] = [
     ("steps_per_epoch", "--steps-per-epoch"),
 ];
 
+/// Keys recorded only since a later version, with the value every run before it had: a run
+/// folder without the key was made with that value.
+const ADDED_LATER: [(&str, &str); 1] = [("placement", "arranged")];
+
 /// The command-line flag that sets a key of [`PipelineConfig`], for error messages.
 fn flag_of(key: &str) -> String {
     let flag = FLAGS
@@ -359,14 +363,21 @@ pub fn check_and_record(out: &Path, config: &impl Serialize) -> Result<(), Error
         let Some(value) = expected.get(key) else {
             continue;
         };
-        // Keys an older report.json lacks are not compared.
-        let Some(found) = recorded
-            .get(key)
-            .or((path == &config_path).then_some(&Value::Null))
-        else {
+        // Keys an older report.json lacks are not compared; a key added later stands for the
+        // value runs had before it.
+        let earlier = ADDED_LATER
+            .iter()
+            .find(|added| added.0 == key)
+            .map(|added| Value::from(added.1));
+        let missing = if path == &config_path {
+            Some(earlier.unwrap_or(Value::Null))
+        } else {
+            earlier
+        };
+        let Some(found) = recorded.get(key).cloned().or(missing) else {
             continue;
         };
-        if found != value {
+        if &found != value {
             return Err(Error::option(
                 "config",
                 format!(
@@ -380,4 +391,31 @@ pub fn check_and_record(out: &Path, config: &impl Serialize) -> Result<(), Error
         }
     }
     Ok(write_json(&config_path, config)?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    #[test]
+    fn a_run_recorded_before_a_key_existed_resumes_with_the_value_it_had() {
+        let dir = tempfile::tempdir().unwrap();
+        // A mesh run's settings as recorded before `placement` was: its renders were arranged.
+        let before = json!({"preset": "quick", "seed": 0, "frames_per_object": 2000});
+        std::fs::write(dir.path().join(CONFIG_FILE), before.to_string()).unwrap();
+        let mut now = before.clone();
+        now["placement"] = "leaning".into();
+        let refused = check_and_record(dir.path(), &now).unwrap_err().to_string();
+        assert!(refused.contains("placement (--placement)"), "{refused}");
+        assert!(refused.contains("made with \"arranged\""), "{refused}");
+        now["placement"] = "arranged".into();
+        check_and_record(dir.path(), &now).unwrap();
+        // Resumed, the record now names it; any other key still missing stays refused.
+        let recorded: Value = read_json(&dir.path().join(CONFIG_FILE)).unwrap();
+        assert_eq!(recorded["placement"], "arranged");
+        now["blur"] = 1.5.into();
+        let refused = check_and_record(dir.path(), &now).unwrap_err().to_string();
+        assert!(refused.contains("made with null"), "{refused}");
+    }
 }

@@ -464,6 +464,7 @@ fn first_validation_figure(
         "val",
         info.obj_id,
         level,
+        0,
         &title,
     )?
     .ok_or_else(|| {
@@ -475,14 +476,16 @@ fn first_validation_figure(
 }
 
 /// The distribution figure of `model` for the first instance of object `obj_id` in `split`
-/// with a visible mask, against its true poses under the symmetries of the dataset's
-/// `models_info.json`; `None` where there is none.
+/// with a visible mask (its image term averaged over `views` test-time views), against its
+/// true poses under the symmetries of the dataset's `models_info.json`; `None` where there is
+/// none.
 fn first_instance_figure(
     model: &ImplicitPdf,
     dataset: &BopDataset,
     split: &str,
     obj_id: u32,
     level: u8,
+    views: usize,
     title: &str,
 ) -> Result<Option<image::RgbImage>, Error> {
     let models = read_models_info(&dataset.models_info_path())?;
@@ -501,7 +504,8 @@ fn first_instance_figure(
                 let size = model.config().input_size as usize;
                 let crop = crop_files(&scene.rgb_path(im_id), &mask, size)?;
                 let truths = group.expand(&truth.pose.rotation);
-                return distribution_figure(model, &crop.pixels, &truths, level, title).map(Some);
+                return distribution_figure(model, &crop.pixels, &truths, level, views, title)
+                    .map(Some);
             }
         }
     }
