@@ -1,9 +1,10 @@
 //! Test-time views of a crop: the crop and copies of it zoomed and shifted by a few percent of
-//! its side, whose image terms [`crate::rotation::Predictor::with_views`] averages. A crop cut
-//! around a real object's mask is off by a few pixels in place and scale; averaging over such
-//! offsets takes the network's answer away from what one exact cut happens to show. A
-//! rotation changes little under them (the line of sight turns by a fraction of the crop's
-//! field of view); a translation would, so only the rotation model uses them.
+//! its side, whose image terms [`crate::rotation::Predictor::with_views`] averages. A small
+//! network's answer can change with a shift of a pixel or a zoom of a few percent, which say
+//! nothing of the rotation; averaging over such views takes its answer away from what one cut
+//! happens to show. A rotation changes little under them (the line of sight turns by a
+//! fraction of the crop's field of view); a translation would, so only the rotation model
+//! uses them.
 use tch::{Kind, Tensor};
 
 use crate::ModelError;
