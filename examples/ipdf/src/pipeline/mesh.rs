@@ -114,13 +114,14 @@ pub struct MeshReport {
 /// The renders' folder in the run.
 const DATA: &str = "data";
 
+/// The models' folder (the rotation model; its translation model in `translation/`).
+const MODEL: &str = "model";
+
 /// Test-time views of each crop the rotation model's scores average over: every view there is.
 /// On the ten real YCB-Video objects' models they raised the validation renders' LLH of each
 /// and turned one more real instance into a true pose (docs/results.md, "Views of the crop at
 /// test time"); the demo's runs score the crop alone, as the paper does.
 const VIEWS: usize = MAX_EXTRA_VIEWS;
-/// The models' folder (the rotation model; its translation model in `translation/`).
-const MODEL: &str = "model";
 
 /// Runs (or resumes) the pipeline of `plan` for the object of `request` into `out`.
 pub fn run_mesh_pipeline(
