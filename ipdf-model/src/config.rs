@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::ModelError;
 use crate::encoder::EncoderKind;
+use crate::rotation::RotationFrame;
 
 /// Everything that fixes a model's shape and initial weights; stored in every checkpoint.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -21,6 +22,10 @@ pub struct ModelConfig {
     pub head_sizes: Vec<i64>,
     /// Seed of the initial weights.
     pub seed: u64,
+    /// The frame of a rotation model's rotations (translation models: unused); a checkpoint
+    /// that names none is in the camera's.
+    #[serde(default, skip_serializing_if = "RotationFrame::is_camera")]
+    pub rotation_frame: RotationFrame,
 }
 
 impl Default for ModelConfig {
@@ -32,6 +37,7 @@ impl Default for ModelConfig {
             fourier_components: 3,
             head_sizes: vec![256; 4],
             seed: 0,
+            rotation_frame: RotationFrame::Camera,
         }
     }
 }
@@ -83,7 +89,7 @@ impl ModelConfig {
     /// Fails with [`ModelError::ConfigMismatch`] naming the first field where `found` (read
     /// from the checkpoint at `path`) differs from `self`.
     pub fn check_same(&self, found: &ModelConfig, path: &Path) -> Result<(), ModelError> {
-        let fields: [(&'static str, String, String); 5] = [
+        let fields: [(&'static str, String, String); 6] = [
             (
                 "encoder",
                 self.encoder.to_string(),
@@ -105,6 +111,11 @@ impl ModelConfig {
                 format!("{:?}", found.head_sizes),
             ),
             ("seed", self.seed.to_string(), found.seed.to_string()),
+            (
+                "rotation_frame",
+                self.rotation_frame.name().to_string(),
+                found.rotation_frame.name().to_string(),
+            ),
         ];
         match fields.into_iter().find(|(_, a, b)| a != b) {
             Some((field, expected, found)) => Err(ModelError::ConfigMismatch {

@@ -4,7 +4,8 @@
 //!
 //! Two halves of the same shape, each with its model, training, training data and prediction:
 //! - [`rotation`]: `F(R, I)` over SO(3) ([`rotation::ImplicitPdf`], [`rotation::Trainer`],
-//!   [`rotation::Predictor`]);
+//!   [`rotation::Predictor`]), in the camera's frame or the line of sight's through the crop's
+//!   centre ([`rotation::RotationFrame`]);
 //! - [`translation`]: `F(t, I)` over the object's translation in the camera frame (mm),
 //!   conditioned on the crop and where it was cut ([`translation::TranslationPdf`],
 //!   [`translation::TranslationTrainer`], [`translation::TranslationPredictor`]).

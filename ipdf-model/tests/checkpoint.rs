@@ -3,7 +3,9 @@ mod common;
 
 use std::path::Path;
 
-use ipdf_model::rotation::{ImplicitPdf, LabelledImages, QuerySampling, TrainOptions, Trainer};
+use ipdf_model::rotation::{
+    ImplicitPdf, LabelledImages, QuerySampling, RotationFrame, TrainOptions, Trainer,
+};
 use ipdf_model::{
     Augmentation, CHECKPOINT_FILE, CheckpointInfo, EncoderKind, FitOptions, ModelConfig,
     ModelError, TRAIN_LOG, load_backbone,
@@ -104,6 +106,57 @@ fn a_saved_model_loads_with_identical_outputs() {
     let info = CheckpointInfo::read(dir.path()).unwrap();
     assert_eq!(info.model, *model.config());
     assert!(info.training.is_none());
+}
+
+#[test]
+fn the_rotation_frame_is_kept_and_older_checkpoints_are_in_the_camera_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let line_of_sight = ModelConfig {
+        rotation_frame: RotationFrame::LineOfSight,
+        ..config()
+    };
+    ImplicitPdf::new(line_of_sight.clone(), Device::Cpu)
+        .unwrap()
+        .save(dir.path())
+        .unwrap();
+    let json = dir.path().join(CHECKPOINT_FILE);
+    let text = std::fs::read_to_string(&json).unwrap();
+    assert!(
+        text.contains("\"rotation_frame\": \"line-of-sight\""),
+        "{text}"
+    );
+    let loaded = ImplicitPdf::load(dir.path(), Device::Cpu).unwrap();
+    assert_eq!(loaded.config().rotation_frame, RotationFrame::LineOfSight);
+    // Resuming it as a camera-frame model is refused, naming the field.
+    let err = config()
+        .check_same(&loaded.config().clone(), &json)
+        .unwrap_err();
+    assert!(
+        matches!(
+            err,
+            ModelError::ConfigMismatch {
+                field: "rotation_frame",
+                ..
+            }
+        ),
+        "{err}"
+    );
+    // A checkpoint written before the frame was recorded names none: the camera's.
+    let older = text.replace(",\n    \"rotation_frame\": \"line-of-sight\"", "");
+    assert!(!older.contains("rotation_frame"), "{older}");
+    std::fs::write(&json, older).unwrap();
+    let loaded = ImplicitPdf::load(dir.path(), Device::Cpu).unwrap();
+    assert_eq!(loaded.config().rotation_frame, RotationFrame::Camera);
+    // A camera-frame model writes no frame, as before.
+    ImplicitPdf::new(config(), Device::Cpu)
+        .unwrap()
+        .save(dir.path())
+        .unwrap();
+    assert!(
+        !std::fs::read_to_string(&json)
+            .unwrap()
+            .contains("rotation_frame")
+    );
 }
 
 #[test]

@@ -205,12 +205,16 @@ pub fn train_model(request: &TrainRequest, progress: &dyn Progress) -> Result<Tr
     let (step, reports) = match request.target {
         Target::Rotation => {
             let mut trainer = open_trainer(request, &info)?;
-            let data = LabelledImages::new(train.crops.shallow_clone(), train.label_sets.clone())?;
+            // Labels in the frame the model learns in.
+            let frame = request.model.rotation_frame;
+            let sets = train.sets_in_frame(&train.label_sets, frame)?;
+            let data = LabelledImages::new(train.crops.shallow_clone(), sets)?;
             let validation = validation
                 .as_ref()
                 .map(|v| {
                     let n = validated(v, request);
-                    LabelledImages::new(v.crops.narrow(0, 0, n as i64), v.label_sets[..n].to_vec())
+                    let sets = v.sets_in_frame(&v.label_sets[..n], frame)?;
+                    Ok::<_, Error>(LabelledImages::new(v.crops.narrow(0, 0, n as i64), sets)?)
                 })
                 .transpose()?;
             let reports = fit_run(&mut trainer, &data, validation.as_ref(), request, progress)?;

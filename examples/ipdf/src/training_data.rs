@@ -9,6 +9,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use ipdf_model::rotation::RotationFrame;
 use ipdf_model::translation::{CameraIntrinsics, CropGeometry};
 use ipdf_model::{CropBox, CropOptions, ImageBox, crop_box, crop_in_box, crop_object};
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
@@ -173,6 +174,38 @@ pub struct Examples {
 }
 
 impl Examples {
+    /// Each crop's turn from a rotation model's `frame` into the camera's
+    /// ([`RotationFrame::to_camera`]; the identity for the camera's frame).
+    pub fn frame_turns(&self, frame: RotationFrame) -> Result<Vec<UnitQuaternion<f64>>, Error> {
+        if frame.is_camera() {
+            return Ok(vec![UnitQuaternion::identity(); self.instances.len()]);
+        }
+        if self.geometry.len() != self.instances.len() {
+            let reason = format!(
+                "a model in the {} frame needs each crop's box and intrinsics: {} of {} known",
+                frame.name(),
+                self.geometry.len(),
+                self.instances.len()
+            );
+            return Err(Error::option("rotation_frame", reason));
+        }
+        Ok(self.geometry.iter().map(|g| frame.to_camera(g)).collect())
+    }
+
+    /// `sets` (one rotation set per crop, camera frame) in a rotation model's `frame`.
+    pub fn sets_in_frame(
+        &self,
+        sets: &[Vec<UnitQuaternion<f64>>],
+        frame: RotationFrame,
+    ) -> Result<Vec<Vec<UnitQuaternion<f64>>>, Error> {
+        let turns = self.frame_turns(frame)?;
+        Ok(sets
+            .iter()
+            .zip(&turns)
+            .map(|(set, turn)| from_camera(set, turn))
+            .collect())
+    }
+
     /// [`Examples::truth_sets`], or the error that scoring needs them.
     pub fn required_truth_sets(&self) -> Result<&[Vec<UnitQuaternion<f64>>], Error> {
         self.truth_sets.as_deref().ok_or_else(no_truth)
@@ -182,6 +215,15 @@ impl Examples {
     pub fn required_truth_poses(&self) -> Result<&[Isometry3<f64>], Error> {
         self.truth_poses.as_deref().ok_or_else(no_truth)
     }
+}
+
+/// `set` (camera frame) in the frame whose turn into the camera's is `turn`.
+pub fn from_camera(
+    set: &[UnitQuaternion<f64>],
+    turn: &UnitQuaternion<f64>,
+) -> Vec<UnitQuaternion<f64>> {
+    let back = turn.inverse();
+    set.iter().map(|rotation| back * rotation).collect()
 }
 
 fn no_truth() -> Error {
@@ -329,13 +371,7 @@ fn scene_instances(
             let Some((labels, translations)) = labels.filter(|l| !l.0.is_empty()) else {
                 continue;
             };
-            let intrinsics = *cameras.get(&im_id).ok_or_else(|| {
-                FileError::new(
-                    &scene.camera_path(),
-                    format!("{im_id}"),
-                    "missing: the image's intrinsics",
-                )
-            })?;
+            let intrinsics = intrinsics_of(&cameras, &scene, im_id)?;
             out.push(Pending {
                 at: InstanceRef {
                     scene_id,
@@ -353,6 +389,22 @@ fn scene_instances(
         }
     }
     Ok(out)
+}
+
+/// Image `im_id`'s intrinsics in `cameras` (`scene`'s `scene_camera.json`), or the error that
+/// names the file and the image.
+pub fn intrinsics_of(
+    cameras: &BTreeMap<u32, Intrinsics>,
+    scene: &SceneDir,
+    im_id: u32,
+) -> Result<Intrinsics, FileError> {
+    cameras.get(&im_id).copied().ok_or_else(|| {
+        FileError::new(
+            &scene.camera_path(),
+            format!("{im_id}"),
+            "missing: the image's intrinsics",
+        )
+    })
 }
 
 /// Which object each mask of each image of `scene` shows: from the ground truth, or, without

@@ -157,6 +157,26 @@ fn unknown_names_of_library_values_name_the_flag() {
             "--views",
             "twelve",
         ),
+        (
+            &[
+                "train",
+                "--dataset",
+                "d",
+                "--labels",
+                "single",
+                "--out",
+                "o",
+                "--rotation-frame",
+                "object",
+            ][..],
+            "--rotation-frame",
+            "object",
+        ),
+        (
+            &["pipeline", "--out", "o", "--rotation-frame", "world"][..],
+            "--rotation-frame",
+            "world",
+        ),
     ] {
         let out = ipdf(args);
         assert_eq!(out.status.code(), Some(2), "{args:?}");

@@ -124,6 +124,10 @@ fn a_mesh_run_is_scored_on_the_real_frames() {
     let parts = ["lights", "backgrounds", "textures", "camera"];
     assert_eq!(report["config"]["randomize"], json!(parts));
     assert_eq!(report["config"]["placement"], "arranged");
+    // The rotation model learns in the line of sight's frame, and its checkpoint says so.
+    assert_eq!(report["config"]["rotation_frame"], "line-of-sight");
+    let checkpoint = read_json(&out.join("model/checkpoint.json"));
+    assert_eq!(checkpoint["model"]["rotation_frame"], "line-of-sight");
     // Every real instance of the object is scored, and only those.
     let real = &report["real"];
     let scored: Vec<(u64, u64)> = real["instances"]
@@ -192,6 +196,8 @@ fn a_mesh_run_is_scored_on_the_real_frames() {
     assert_refused(&other, "distance_m (--distance)");
     let leaning = setup.words(&setup.camera, &["--placement", "leaning"]);
     assert_refused(&leaning, "placement (--placement)");
+    let camera_frame = setup.words(&setup.camera, &["--rotation-frame", "camera"]);
+    assert_refused(&camera_frame, "rotation_frame (--rotation-frame)");
 }
 
 #[test]

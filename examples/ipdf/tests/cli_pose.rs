@@ -6,9 +6,10 @@ mod common;
 use std::path::Path;
 
 use common::{
-    BRIEF_TRAINING, SMALL_NETWORK, assert_fails, ipdf_json, predict_args, read_json, s, synth,
-    train_single,
+    BRIEF_TRAINING, SMALL_NETWORK, assert_fails, copy_dir, ipdf_json, predict_args, read_json, s,
+    synth, train_single,
 };
+use nalgebra::{Quaternion, Unit, UnitQuaternion, Vector3};
 use serde_json::Value;
 
 /// The float32 rows of a 2-D `.npy` file and its shape.
@@ -17,6 +18,38 @@ fn read_npy(path: &Path) -> (Vec<u64>, Vec<f32>) {
     let npy = npyz::NpyFile::new(&bytes[..]).unwrap();
     let shape = npy.shape().to_vec();
     (shape, npy.into_vec::<f32>().unwrap())
+}
+
+/// The unit quaternion of a JSON `[w, x, y, z]`.
+fn quaternion(value: &Value) -> UnitQuaternion<f64> {
+    let q = |i: usize| finite(&value[i]);
+    UnitQuaternion::from_quaternion(Quaternion::new(q(0), q(1), q(2), q(3)))
+}
+
+/// The turn from the line of sight's frame into the camera's for the crop around `mask`: the
+/// shortest turn taking z onto the ray through the middle of the mask's bounding box (the
+/// crop's centre), in pixel coordinates with pixel centres at integers, for `cam_K` `k`.
+fn line_of_sight(mask: &Path, k: &Value) -> UnitQuaternion<f64> {
+    let mask = image::open(mask).unwrap().to_luma8();
+    let set: Vec<(u32, u32)> = mask
+        .enumerate_pixels()
+        .filter(|p| p.2.0[0] > 0)
+        .map(|p| (p.0, p.1))
+        .collect();
+    let middle = |coordinate: fn(&(u32, u32)) -> u32| {
+        let low = set.iter().map(coordinate).min().unwrap();
+        let high = set.iter().map(coordinate).max().unwrap();
+        f64::from(low + high) / 2.0
+    };
+    let (u, v) = (middle(|p| p.0), middle(|p| p.1));
+    let ray = Vector3::new(
+        (u - finite(&k[2])) / finite(&k[0]),
+        (v - finite(&k[5])) / finite(&k[4]),
+        1.0,
+    )
+    .normalize();
+    let axis = Unit::new_normalize(Vector3::z().cross(&ray));
+    UnitQuaternion::from_axis_angle(&axis, ray.z.acos())
 }
 
 fn finite(value: &Value) -> f64 {
@@ -279,6 +312,51 @@ fn pose_runs_train_score_and_predict_translations() {
     let total: f64 = rows.chunks(5).map(|row| f64::from(row[4])).sum();
     assert!((total - 1.0).abs() < 1e-3, "masses sum to {total}");
     assert_eq!(read_json(&out.with_extension("json")), predicted);
+    // The same weights read as a model in the line of sight's frame (its checkpoint says so)
+    // answer with the camera-frame model's rotations turned by the crop's line of sight, here
+    // written out from the mask's box and cam_K: the shortest turn taking z onto the ray
+    // through the box's middle pixel. The distribution's masses are the same, each cell now
+    // the grid's rotation turned by `cell_turn_wxyz`; the translation model is unchanged.
+    let los = dir.path().join("line_of_sight");
+    copy_dir(&run, &los);
+    let mut checkpoint = read_json(&los.join("checkpoint.json"));
+    checkpoint["model"]["rotation_frame"] = "line-of-sight".into();
+    std::fs::write(los.join("checkpoint.json"), checkpoint.to_string()).unwrap();
+    let los_out = dir.path().join("line_of_sight.npy");
+    let turned = ipdf_json(&predict_args(
+        &los,
+        &rgb,
+        &mask,
+        &los_out,
+        &["--level", "1", "--intrinsics", &intrinsics],
+    ));
+    let turn = line_of_sight(&mask, k);
+    assert!(turn.angle() > 1e-3, "{turn:?}");
+    assert!(quaternion(&predicted["cell_turn_wxyz"]).angle() < 1e-12);
+    assert!(quaternion(&turned["cell_turn_wxyz"]).angle_to(&turn) < 1e-9);
+    let most_likely = |value: &Value| quaternion(&value["argmax"]["quaternion_wxyz"]);
+    let expected = turn * most_likely(&predicted);
+    assert!(most_likely(&turned).angle_to(&expected) < 1e-9, "{turned}");
+    for (a, b) in turned["densest"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(predicted["densest"].as_array().unwrap())
+    {
+        let expected = turn * quaternion(&b["quaternion_wxyz"]);
+        assert!(quaternion(&a["quaternion_wxyz"]).angle_to(&expected) < 1e-9);
+        assert_eq!(a["probability"], b["probability"]);
+    }
+    assert_eq!(read_npy(&los_out), read_npy(&out));
+    assert_eq!(
+        turned["argmax"]["cam_t_m2c"],
+        predicted["argmax"]["cam_t_m2c"]
+    );
+    // Without the camera it cannot answer in the camera's frame, and says what it needs.
+    assert_fails(
+        &predict_args(&los, &rgb, &mask, &los_out, &["--level", "1"]),
+        "a rotation model in the line-of-sight frame",
+    );
     // The same camera as a file (`--camera`, BOP's `cam_K` form) predicts the same pose; a
     // file of another image size is refused, naming it and the field.
     let (width, height) = image::image_dimensions(&rgb).unwrap();
@@ -326,7 +404,7 @@ fn pose_runs_train_score_and_predict_translations() {
         s(&depth),
     ];
     let fitted = ipdf_json(&predict_args(&run, &rgb, &box_mask, &out, &with_depth));
-    let vector = |value: &Value| nalgebra::Vector3::from_fn(|i, _| finite(&value[i]));
+    let vector = |value: &Value| Vector3::from_fn(|i, _| finite(&value[i]));
     let (model_t, fitted_t) = (
         vector(&fitted["argmax"]["cam_t_m2c"]),
         vector(&fitted["argmax"]["fitted_cam_t_m2c"]),
@@ -352,13 +430,7 @@ fn pose_runs_train_score_and_predict_translations() {
         (refined_t - truth).norm() < diameter,
         "{refined} against {truth}"
     );
-    let wxyz: Vec<f64> = (0..4)
-        .map(|i| finite(&refined["quaternion_wxyz"][i]))
-        .collect();
-    let quaternion = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
-        wxyz[0], wxyz[1], wxyz[2], wxyz[3],
-    ));
-    let matrix = quaternion.to_rotation_matrix();
+    let matrix = quaternion(&refined["quaternion_wxyz"]).to_rotation_matrix();
     for i in 0..9 {
         let entry = finite(&refined["cam_R_m2c"][i]);
         assert!((entry - matrix[(i / 3, i % 3)]).abs() < 1e-9, "{refined}");

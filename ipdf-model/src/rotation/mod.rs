@@ -13,11 +13,14 @@
 //!   ([`Predictor::log_densities`]), a bfloat16 head for speed ([`Precision`]), and the most
 //!   likely rotation by gradient ascent ([`Predictor::argmax`]); its image term optionally
 //!   averaged over test-time views of the crop ([`crop_views`], [`Predictor::with_views`]).
+//! - [`RotationFrame`]: the camera's frame, or the line of sight's through the crop's centre,
+//!   in which one look of the object is one rotation wherever in the image it was cut.
 //!
 //! The same rooms as [`crate::translation`]: `model`, `train`, `fit`, `predict`, `checkpoint`,
 //! and the rotation's own `loss` (query sets over SO(3)).
 mod checkpoint;
 mod fit;
+mod frame;
 mod loss;
 mod model;
 mod predict;
@@ -26,6 +29,7 @@ mod views;
 
 pub use crate::encoding::{encode_rotations, rotations_to_tensor};
 pub use fit::{LabelledImages, validation_llh};
+pub use frame::RotationFrame;
 pub use loss::{LabelLoss, QuerySampling, label_set_from_matrices, set_nll};
 pub use model::ImplicitPdf;
 pub use predict::{Argmax, ArgmaxOptions, Precision, Predictor, UNDER_RESOLUTION_LIMIT};

@@ -76,6 +76,17 @@ impl CropGeometry {
         }
     }
 
+    /// The ray through the crop's centre, `((u₀ − ½ − cx)/fx, (v₀ − ½ − cy)/fy, 1)` (the
+    /// crop box's coordinates put pixel centres at half-integers, the intrinsics' at integers).
+    pub fn ray(&self) -> Vector3<f64> {
+        let (k, c) = (&self.intrinsics, &self.crop);
+        Vector3::new(
+            (c.centre_x - 0.5 - k.cx) / k.fx,
+            (c.centre_y - 0.5 - k.cy) / k.fy,
+            1.0,
+        )
+    }
+
     /// The geometric mean of the focal lengths, pixels.
     fn focal(&self) -> f64 {
         (self.intrinsics.fx * self.intrinsics.fy).sqrt()
@@ -127,7 +138,7 @@ pub(crate) fn crop_factors(
 }
 
 /// What the image term learns about where the crop came from, `[B, 3]`: the direction of the
-/// crop centre's ray, `((u₀ − ½ − cx)/fx, (v₀ − ½ − cy)/fy)`, and `ln(z_ref · s / (f · E))`, the
+/// crop centre's ray ([`CropGeometry::ray`]'s `x` and `y`), and `ln(z_ref · s / (f · E))`, the
 /// log-ratio of the depth at which the crop would be `E` mm wide to the working volume's middle
 /// depth `z_ref` (0 for an object of the reference size there).
 pub(crate) fn crop_features(
@@ -138,11 +149,11 @@ pub(crate) fn crop_features(
     kind: Kind,
 ) -> Tensor {
     per_crop::<{ FEATURES as usize }>(geometry, device, kind, |g| {
-        let (k, c) = (&g.intrinsics, &g.crop);
+        let ray = g.ray();
         [
-            (c.centre_x - 0.5 - k.cx) / k.fx,
-            (c.centre_y - 0.5 - k.cy) / k.fy,
-            (reference_depth * c.side / (g.focal() * extent)).ln(),
+            ray.x,
+            ray.y,
+            (reference_depth * g.crop.side / (g.focal() * extent)).ln(),
         ]
     })
 }

@@ -42,6 +42,7 @@ named!(
     ipdf::training_data::LabelSource,
     ipdf::training_data::CropSource,
     ipdf::training::Target,
+    ipdf_model::rotation::RotationFrame,
     ipdf::eval::Truth,
     ipdf::npy::RotationFormat,
     ipdf::pipeline::Preset => ipdf::pipeline::Preset::description,

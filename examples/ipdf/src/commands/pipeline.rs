@@ -6,6 +6,7 @@ use anyhow::{Context, Result};
 use bop_dataset::{BopDataset, camera_from_json, read_json};
 use depth_render::SensorPreset;
 use ipdf::pipeline::{MeshRequest, Plan, Preset, RealSplit, run_mesh_pipeline, run_pipeline};
+use ipdf_model::rotation::RotationFrame;
 use synth_data::{Placement, Randomization};
 
 use super::choice::choice;
@@ -48,6 +49,11 @@ pub struct PipelineArgs {
     /// Override the preset's steps per epoch.
     #[arg(long)]
     pub steps_per_epoch: Option<u64>,
+    /// The frame the rotation models learn in, instead of the preset's (`ipdf train
+    /// --rotation-frame`): the built-in objects' runs learn in the camera's, a `--mesh` run in
+    /// the line of sight's.
+    #[arg(long, value_parser = choice::<RotationFrame>())]
+    pub rotation_frame: Option<RotationFrame>,
     /// One object of your own instead of the built-in three (.ply/.obj, its texture image or
     /// vertex colours shown): randomised renders of it, pseudo labels, a rotation and a
     /// translation model, scored on the renders and on `--real` (needs `--camera`).
@@ -136,6 +142,7 @@ fn plan(args: &PipelineArgs, preset: Plan) -> Plan {
             args.sensor.or(preset.sensor)
         },
         epochs: args.epochs.unwrap_or(preset.epochs),
+        rotation_frame: args.rotation_frame.unwrap_or(preset.rotation_frame),
         translation_epochs: args
             .translation_epochs
             .or(args.epochs)

@@ -75,7 +75,9 @@ pub struct PredictArgs {
     /// Grid level of the rotation distribution (4: 294,912 rotations).
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(0..=5))]
     pub level: u8,
-    /// The rotation distribution: float32 probabilities, one per cell of `ipdf grid --level L`.
+    /// The rotation distribution: float32 probabilities, one per cell of `ipdf grid --level L`
+    /// (cell `i` is the rotation `q · R_i`, `q` the JSON's `cell_turn_wxyz`: the identity for a
+    /// model in the camera's frame, the crop's line of sight for one in the line of sight's).
     /// A translation distribution goes beside it as `<name>_translation.npy` (one row per
     /// octree cell: x, y, z of its centre in mm, its level, its probability), the most likely
     /// pose as JSON (same name, `.json`).
@@ -84,7 +86,8 @@ pub struct PredictArgs {
 }
 
 /// Runs `ipdf predict`; returns `{"argmax": {"quaternion_wxyz", "cam_R_m2c", "cam_t_m2c",
-/// "fitted_cam_t_m2c", "score"}, "level", "cells", "densest": [{"quaternion_wxyz", "probability"}, …],
+/// "fitted_cam_t_m2c", "score"}, "level", "cells", "cell_turn_wxyz",
+/// "densest": [{"quaternion_wxyz", "probability"}, …],
 /// "translation": {"cells", "distribution", "score"}, "refined_with_depth": {"quaternion_wxyz",
 /// "cam_R_m2c", "cam_t_m2c", "hypothesis", "score"}}` with the parts the run's models and the
 /// inputs give.
@@ -124,9 +127,10 @@ pub fn run(args: &PredictArgs) -> Result<Value> {
         (None, None) => bail!("--mask or --bbox: where the object is in --rgb"),
     };
     // Every input is checked before anything is written.
-    let geometry = translation
-        .as_ref()
-        .map(|_| crop_geometry(&crop, args))
+    let frame = rotation.as_ref().map(|m| m.config().rotation_frame);
+    let needs_camera = translation.is_some() || frame.is_some_and(|f| !f.is_camera());
+    let geometry = needs_camera
+        .then(|| crop_geometry(&crop, args))
         .transpose()?;
     let depth_view = args
         .depth
@@ -136,7 +140,12 @@ pub fn run(args: &PredictArgs) -> Result<Value> {
     let mut result = json!({});
     let mut most_likely = None;
     if let Some(model) = &rotation {
-        let (value, best, hypotheses) = predict_rotation(model, &crop, args)?;
+        let turn = geometry
+            .as_ref()
+            .map_or_else(UnitQuaternion::identity, |g| {
+                model.config().rotation_frame.to_camera(g)
+            });
+        let (value, best, hypotheses) = predict_rotation(model, &crop, &turn, args)?;
         result = value;
         most_likely = Some(best);
         if let Some(view) = &depth_view {
@@ -180,10 +189,12 @@ pub fn run(args: &PredictArgs) -> Result<Value> {
 
 /// The rotation distribution written to `--out`, the JSON of the most likely rotation and the
 /// densest cells, the most likely rotation, and the rotation hypotheses a pose is refined from
-/// with depth.
+/// with depth; `turn` takes the model's frame into the camera's, in which every rotation is
+/// given (the distribution's cells are the grid's rotations turned by it).
 fn predict_rotation(
     model: &ImplicitPdf,
     crop: &FileCrop,
+    turn: &UnitQuaternion<f64>,
     args: &PredictArgs,
 ) -> Result<(Value, UnitQuaternion<f64>, Vec<UnitQuaternion<f64>>)> {
     let crop = crop_tensor(&crop.pixels, model.config().input_size as usize);
@@ -195,11 +206,16 @@ fn predict_rotation(
     let options = ArgmaxOptions::default();
     let refined = predictor.hierarchical_for(&image_term, &options.refine)?;
     let best = predictor.argmax_from(&image_term, &refined, &options)?;
-    let hypotheses = refined.rotation_hypotheses(
-        best.rotation,
-        DEPTH_HYPOTHESES,
-        HYPOTHESIS_SPACING_DEG.to_radians(),
-    )?;
+    let hypotheses = refined
+        .rotation_hypotheses(
+            best.rotation,
+            DEPTH_HYPOTHESES,
+            HYPOTHESIS_SPACING_DEG.to_radians(),
+        )?
+        .iter()
+        .map(|h| turn * h)
+        .collect();
+    let most_likely = turn * best.rotation;
     let grid = Grid::new(args.level)?;
     let mut order: Vec<usize> = (0..masses.len()).collect();
     order.sort_by(|&a, &b| masses[b].total_cmp(&masses[a]));
@@ -207,21 +223,22 @@ fn predict_rotation(
         .iter()
         .take(5)
         .map(|&i| {
-            let rotation = grid.rotation(i as u64)?;
+            let rotation = turn * grid.rotation(i as u64)?;
             Ok(json!({"quaternion_wxyz": rotation_to_wxyz(&rotation), "probability": masses[i]}))
         })
         .collect::<Result<Vec<_>>>()?;
     let value = json!({
         "argmax": {
-            "quaternion_wxyz": rotation_to_wxyz(&best.rotation),
-            "cam_R_m2c": rotation_to_matrix(&best.rotation),
+            "quaternion_wxyz": rotation_to_wxyz(&most_likely),
+            "cam_R_m2c": rotation_to_matrix(&most_likely),
             "score": best.score,
         },
         "level": args.level,
         "cells": masses.len(),
+        "cell_turn_wxyz": rotation_to_wxyz(turn),
         "densest": densest,
     });
-    Ok((value, best.rotation, hypotheses))
+    Ok((value, most_likely, hypotheses))
 }
 
 /// The JSON of a pose found from the hypotheses and the depth: its rotation, its translation
@@ -374,8 +391,8 @@ fn camera_intrinsics(crop: &FileCrop, args: &PredictArgs) -> Result<(Intrinsics,
             (i, source)
         }
         (None, None) => bail!(
-            "--intrinsics fx,fy,cx,cy or --camera FILE: needed by the translation model of {} \
-             (the camera's cam_K)",
+            "--intrinsics fx,fy,cx,cy or --camera FILE: needed by the translation model, or a \
+             rotation model in the line-of-sight frame, of {} (the camera's cam_K)",
             args.checkpoint.display()
         ),
     })

@@ -8,6 +8,7 @@ use anyhow::{Result, bail};
 use ipdf::progress::bar;
 use ipdf::training::{TRANSLATION_DIR, Target, TrainRequest, train_model};
 use ipdf::training_data::{CropSource, LabelSource};
+use ipdf_model::rotation::RotationFrame;
 use ipdf_model::{EncoderKind, ModelConfig};
 
 /// The encoder named on the command line.
@@ -106,6 +107,12 @@ pub struct TrainArgs {
     /// Steps per turn of a continuous symmetry in analytical label sets.
     #[arg(long, default_value_t = 36)]
     pub continuous_steps: usize,
+    /// The frame the rotation model learns and answers in: the camera's, or the line of sight's
+    /// through the crop's centre, where one look of the object is one rotation wherever in the
+    /// image it was cut (answers are turned back into the camera's frame with the crop's box and
+    /// the image's intrinsics). `ipdf pipeline --mesh` trains in the line of sight's.
+    #[arg(long, value_parser = choice::<RotationFrame>(), default_value = "camera")]
+    pub rotation_frame: RotationFrame,
     /// Pretrained encoder weights (.safetensors with torchvision names).
     #[arg(long)]
     pub pretrained: Option<PathBuf>,
@@ -140,6 +147,7 @@ pub fn run(args: &TrainArgs, seed: u64) -> Result<serde_json::Value> {
             input_size: args.input_size as i64,
             head_sizes: args.head.clone(),
             seed,
+            rotation_frame: args.rotation_frame,
             ..ModelConfig::default()
         },
         epochs: args.epochs,

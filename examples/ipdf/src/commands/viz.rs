@@ -5,13 +5,14 @@ use std::path::PathBuf;
 
 use super::check_extension;
 use anyhow::{Result, bail};
-use bop_dataset::{BopDataset, read_models_info, read_scene_gt};
-use ipdf::eval::rotation::distribution_figure;
+use bop_dataset::{BopDataset, read_models_info, read_scene_camera, read_scene_gt};
+use ipdf::eval::rotation::{crop_turn, distribution_figure};
 use ipdf::plots::{plot_training_curves, write_png};
 use ipdf::run_info::RunInfo;
-use ipdf::training_data::crop_files;
+use ipdf::training_data::{crop_files, intrinsics_of};
 use ipdf_model::default_device;
 use ipdf_model::rotation::ImplicitPdf;
+use nalgebra::UnitQuaternion;
 use serde_json::json;
 
 /// Arguments of `ipdf viz`.
@@ -71,8 +72,18 @@ pub fn run(args: &VizArgs) -> Result<serde_json::Value> {
         let title = format!("{}, trained on {} labels", info.object, info.labels);
         match (&args.rgb, &args.mask, args.scene, args.image) {
             (Some(rgb), Some(mask), _, _) => {
+                let frame = model.config().rotation_frame;
+                if !frame.is_camera() {
+                    bail!(
+                        "--rgb: {} answers in the {} frame, which needs the camera's intrinsics: \
+                         draw it with --scene and --image of a dataset",
+                        run.display(),
+                        frame.name()
+                    );
+                }
                 let crop = crop_files(rgb, mask, size)?;
-                distribution_figure(&model, &crop.pixels, &[], args.level, 0, &title)?
+                let identity = UnitQuaternion::identity();
+                distribution_figure(&model, &crop.pixels, &identity, &[], args.level, 0, &title)?
             }
             (_, _, Some(scene_id), Some(im_id)) => {
                 let dataset = info.dataset(args.dataset.as_deref())?;
@@ -107,7 +118,9 @@ pub fn run(args: &VizArgs) -> Result<serde_json::Value> {
                     &scene.visible_mask_path(im_id, args.instance),
                     size,
                 )?;
-                distribution_figure(&model, &crop.pixels, &truth, args.level, 0, &title)?
+                let cameras = read_scene_camera(&scene.camera_path())?;
+                let turn = crop_turn(&model, &crop, &intrinsics_of(&cameras, &scene, im_id)?);
+                distribution_figure(&model, &crop.pixels, &turn, &truth, args.level, 0, &title)?
             }
             _ => bail!("--checkpoint needs --rgb and --mask, or --scene and --image"),
         }

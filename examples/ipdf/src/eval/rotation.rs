@@ -3,7 +3,7 @@
 //! log-density over the ground-truth symmetry set), MAAD (expected distance of a sample to the
 //! nearest ground-truth rotation) and Recall MAAD (mean distance of each ground-truth rotation
 //! to the nearest predicted one), averaged over crops.
-use bop_dataset::Progress;
+use bop_dataset::{Intrinsics, Progress};
 use ipdf_metrics::{Distribution, GridCell, RECALL_THRESHOLD, maad, recall_maad};
 use ipdf_model::rotation::{ArgmaxOptions, ImplicitPdf, Predictor};
 use ipdf_model::{CellMasses, RefineOptions};
@@ -12,7 +12,7 @@ use so3_grid::Grid;
 
 use crate::Error;
 use crate::plots::plot_distribution;
-use crate::training_data::{Examples, crop_tensor, to_unit_floats};
+use crate::training_data::{Examples, FileCrop, crop_tensor, from_camera, to_unit_floats};
 
 /// Mean scores over the crops evaluated.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -58,10 +58,10 @@ pub struct RotationEvaluation {
     pub maad_deg: Vec<f64>,
     /// Each crop's Recall MAAD, degrees.
     pub recall_maad_deg: Vec<f64>,
-    /// Each crop's most likely rotation (empty unless asked for).
+    /// Each crop's most likely rotation, in the camera's frame (empty unless asked for).
     pub argmax: Vec<UnitQuaternion<f64>>,
-    /// Each crop's rotation hypotheses, the most likely first (empty unless asked for;
-    /// [`ipdf_model::CellMasses::rotation_hypotheses`]).
+    /// Each crop's rotation hypotheses, the most likely first, in the camera's frame (empty
+    /// unless asked for; [`ipdf_model::CellMasses::rotation_hypotheses`]).
     pub hypotheses: Vec<Vec<UnitQuaternion<f64>>>,
 }
 
@@ -79,7 +79,9 @@ pub struct Picks {
 /// [`evaluate`], with each crop's LLH, MAAD and Recall MAAD, and the rotations `picks` asks
 /// for: each crop's most likely rotation ([`Predictor::argmax_from`] on the same distribution),
 /// its rotation hypotheses. Each crop's image term is computed once, averaged over the crop
-/// and `views` test-time views of it ([`Predictor::with_views`]).
+/// and `views` test-time views of it ([`Predictor::with_views`]). A model in the line of
+/// sight's frame is scored against the truth turned into it, crop by crop, and its rotations
+/// are turned back into the camera's ([`Examples::frame_turns`]).
 pub fn evaluate_rotations(
     model: &ImplicitPdf,
     examples: &Examples,
@@ -89,6 +91,10 @@ pub fn evaluate_rotations(
     progress: &dyn Progress,
 ) -> Result<RotationEvaluation, Error> {
     let truths = examples.required_truth_sets()?;
+    // The model's distribution is in its own frame: the truth is scored there (LLH, MAAD and
+    // Recall MAAD are the same in any frame), and the rotations picked are turned into the
+    // camera's.
+    let turns = examples.frame_turns(model.config().rotation_frame)?;
     let mut predictor = Predictor::new(model).with_views(views)?;
     let argmax_options = ArgmaxOptions {
         refine: *grid,
@@ -97,7 +103,8 @@ pub fn evaluate_rotations(
     let (mut queries, mut sum_under) = (0, 0.0);
     let (mut llh, mut rotations, mut hypotheses) = (Vec::new(), Vec::new(), Vec::new());
     let (mut maad_deg, mut recall_maad_deg) = (Vec::new(), Vec::new());
-    for (i, truth) in truths.iter().enumerate() {
+    for (i, (truth, turn)) in truths.iter().zip(&turns).enumerate() {
+        let truth = &from_camera(truth, turn);
         let crop = to_unit_floats(&examples.crops.get(i as i64));
         let image_term = predictor.image_term(&crop)?;
         let masses = predictor.hierarchical_for(&image_term, grid)?;
@@ -113,14 +120,12 @@ pub fn evaluate_rotations(
                 .argmax_from(&image_term, &masses, &argmax_options)?
                 .rotation;
             if picks.hypotheses > 0 {
-                hypotheses.push(masses.rotation_hypotheses(
-                    best,
-                    picks.hypotheses,
-                    picks.hypothesis_spacing,
-                )?);
+                let picked =
+                    masses.rotation_hypotheses(best, picks.hypotheses, picks.hypothesis_spacing)?;
+                hypotheses.push(picked.iter().map(|h| turn * h).collect());
             }
             if picks.argmax {
-                rotations.push(best);
+                rotations.push(turn * best);
             }
         }
         progress.advance(1);
@@ -155,13 +160,28 @@ pub fn cell_distribution(masses: &CellMasses) -> Result<Distribution, Error> {
     Ok(Distribution::from_cells(cells, masses.masses.clone())?)
 }
 
+/// The turn from `model`'s frame into the camera's for `crop` of an image with `intrinsics`
+/// ([`ipdf_model::rotation::RotationFrame::to_camera`]).
+pub fn crop_turn(
+    model: &ImplicitPdf,
+    crop: &FileCrop,
+    intrinsics: &Intrinsics,
+) -> UnitQuaternion<f64> {
+    model
+        .config()
+        .rotation_frame
+        .to_camera(&crop.geometry(intrinsics))
+}
+
 /// The Implicit-PDF figure of `model`'s distribution for an 8-bit crop (`[3, S, S]`) on the
-/// `level` grid, its image term averaged over `views` test-time views, with `truth` drawn
-/// over it.
+/// `level` grid, its image term averaged over `views` test-time views, with `truth` (camera
+/// frame) drawn over it; `turn` takes the model's frame into the camera's
+/// ([`ipdf_model::rotation::RotationFrame::to_camera`]), so the figure is in the camera's.
 pub fn distribution_figure(
     model: &ImplicitPdf,
     crop: &[u8],
-    truth: &[nalgebra::UnitQuaternion<f64>],
+    turn: &UnitQuaternion<f64>,
+    truth: &[UnitQuaternion<f64>],
     level: u8,
     views: usize,
     title: &str,
@@ -171,5 +191,101 @@ pub fn distribution_figure(
     let masses = Predictor::new(model)
         .with_views(views)?
         .probabilities(&crop_tensor(crop, size), level)?;
-    plot_distribution(crop, size, &grid.rotations(), &masses, truth, title)
+    let rotations: Vec<_> = grid.rotations().iter().map(|r| turn * r).collect();
+    plot_distribution(crop, size, &rotations, &masses, truth, title)
+}
+
+#[cfg(test)]
+mod tests {
+    use ipdf_model::ModelConfig;
+    use ipdf_model::rotation::RotationFrame;
+    use nalgebra::{Unit, Vector3};
+    use synth_data::{ObjectKind, SynthObject};
+    use tch::Device;
+
+    use super::*;
+    use crate::training_data::rendered_examples;
+
+    /// Each crop's turn into the camera's frame, written out from the pinhole model: the turn
+    /// about `z × ray` by the angle between `z` and the ray through the crop's centre.
+    fn turns_by_hand(examples: &Examples) -> Vec<UnitQuaternion<f64>> {
+        examples
+            .geometry
+            .iter()
+            .map(|g| {
+                let (k, c) = (&g.intrinsics, &g.crop);
+                let ray = Vector3::new(
+                    (c.centre_x - 0.5 - k.cx) / k.fx,
+                    (c.centre_y - 0.5 - k.cy) / k.fy,
+                    1.0,
+                )
+                .normalize();
+                let axis = Unit::new_normalize(Vector3::z().cross(&ray));
+                UnitQuaternion::from_axis_angle(&axis, ray.z.acos())
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_line_of_sight_model_is_scored_in_its_frame_and_answers_in_the_camera_frame() {
+        let object = SynthObject::built_in(ObjectKind::Box).unwrap();
+        let examples = rendered_examples(&object, 3, 16, 5).unwrap();
+        let turns = turns_by_hand(&examples);
+        assert!(turns.iter().all(|t| t.angle() > 1e-3), "{turns:?}");
+        // The same weights (they depend on the seed alone), read in either frame.
+        let camera = ModelConfig {
+            head_sizes: vec![16, 16],
+            ..ModelConfig::small(16)
+        };
+        let line_of_sight = ModelConfig {
+            rotation_frame: RotationFrame::LineOfSight,
+            ..camera.clone()
+        };
+        let in_camera = ImplicitPdf::new(camera, Device::Cpu).unwrap();
+        let in_line_of_sight = ImplicitPdf::new(line_of_sight, Device::Cpu).unwrap();
+        // The truth turned into the line of sight's frame by hand, for the camera-frame reading.
+        let truths = examples.truth_sets.clone().unwrap();
+        let turned = Examples {
+            crops: examples.crops.shallow_clone(),
+            label_sets: examples.label_sets.clone(),
+            translation_sets: examples.translation_sets.clone(),
+            geometry: examples.geometry.clone(),
+            truth_sets: Some(
+                truths
+                    .iter()
+                    .zip(&turns)
+                    .map(|(set, turn)| set.iter().map(|r| turn.inverse() * r).collect())
+                    .collect(),
+            ),
+            truth_poses: examples.truth_poses.clone(),
+            instances: examples.instances.clone(),
+            visible_fractions: examples.visible_fractions.clone(),
+            repairs: Default::default(),
+        };
+        let picks = Picks {
+            argmax: true,
+            hypotheses: 3,
+            hypothesis_spacing: 0.5,
+        };
+        let grid = RefineOptions::to_level(2);
+        let scored =
+            evaluate_rotations(&in_line_of_sight, &examples, &grid, 0, picks, &()).unwrap();
+        let by_hand = evaluate_rotations(&in_camera, &turned, &grid, 0, picks, &()).unwrap();
+        for (a, b) in [
+            (&scored.llh, &by_hand.llh),
+            (&scored.maad_deg, &by_hand.maad_deg),
+            (&scored.recall_maad_deg, &by_hand.recall_maad_deg),
+        ] {
+            for (x, y) in a.iter().zip(b) {
+                assert!((x - y).abs() < 1e-9, "{a:?} against {b:?}");
+            }
+        }
+        for (i, turn) in turns.iter().enumerate() {
+            let expected = turn * by_hand.argmax[i];
+            assert!(scored.argmax[i].angle_to(&expected) < 1e-9, "crop {i}");
+            for (h, g) in scored.hypotheses[i].iter().zip(&by_hand.hypotheses[i]) {
+                assert!(h.angle_to(&(turn * g)) < 1e-9, "crop {i}");
+            }
+        }
+    }
 }

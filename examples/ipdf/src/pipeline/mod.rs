@@ -17,7 +17,8 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use bop_dataset::{
-    BopDataset, read_json_as, read_models_info, read_scene_gt, write_atomically, write_json,
+    BopDataset, read_json_as, read_models_info, read_scene_camera, read_scene_gt, write_atomically,
+    write_json,
 };
 use depth_render::SensorPreset;
 use ipdf_model::rotation::ImplicitPdf;
@@ -33,7 +34,7 @@ pub use report::{FigureEntry, LabelAccuracy, ModelScores, Report, ScoreTable};
 pub use workers::on_threads;
 
 use crate::Error;
-use crate::eval::rotation::distribution_figure;
+use crate::eval::rotation::{crop_turn, distribution_figure};
 use crate::eval::translation::predict_translation;
 use crate::eval::{EvalRequest, EvalResult, eval_file, evaluate_run};
 use crate::plots::{plot_label_errors, plot_training_curves, plot_translation, write_png};
@@ -41,7 +42,8 @@ use crate::progress::bar;
 use crate::run_info::RunInfo;
 use crate::training::{TRANSLATION_DIR, Target, TrainRequest, is_trained, train_model};
 use crate::training_data::{
-    CropSource, ExampleOptions, LabelSource, crop_files, load_examples, to_unit_floats,
+    CropSource, ExampleOptions, LabelSource, crop_files, intrinsics_of, load_examples,
+    to_unit_floats,
 };
 
 /// The objects of the run.
@@ -342,6 +344,7 @@ fn train_request(plan: &Plan, data: &Path, target: Target, seed: u64) -> TrainRe
             input_size: plan.input_size as i64,
             head_sizes: plan.head.clone(),
             seed,
+            rotation_frame: plan.rotation_frame,
             ..ModelConfig::default()
         },
         epochs: plan.epochs_of(target),
@@ -503,9 +506,12 @@ fn first_instance_figure(
                 }
                 let size = model.config().input_size as usize;
                 let crop = crop_files(&scene.rgb_path(im_id), &mask, size)?;
+                let cameras = read_scene_camera(&scene.camera_path())?;
+                let turn = crop_turn(model, &crop, &intrinsics_of(&cameras, &scene, im_id)?);
                 let truths = group.expand(&truth.pose.rotation);
-                return distribution_figure(model, &crop.pixels, &truths, level, views, title)
-                    .map(Some);
+                let figure =
+                    distribution_figure(model, &crop.pixels, &turn, &truths, level, views, title)?;
+                return Ok(Some(figure));
             }
         }
     }
