@@ -7,7 +7,7 @@ use std::path::Path;
 
 use common::{
     BRIEF_TRAINING, SMALL_NETWORK, assert_fails, copy_dir, ipdf_json, predict_args, read_json, s,
-    synth, train_single,
+    synth, train_single, viz_args,
 };
 use nalgebra::{Quaternion, Unit, UnitQuaternion, Vector3};
 use serde_json::Value;
@@ -390,6 +390,16 @@ fn pose_runs_train_score_and_predict_translations() {
         .position(|instance| instance["obj_id"] == *box_id)
         .unwrap();
     let box_mask = scene.join(format!("mask_visib/000000_{index:06}.png"));
+    // `ipdf viz` draws the line-of-sight model with the dataset's image (whose intrinsics turn
+    // it into the camera's frame), and refuses a bare image without them.
+    let figure = dir.path().join("line_of_sight.png");
+    let instance = index.to_string();
+    let drawn = ["--scene", "0", "--image", "0", "--instance", &instance];
+    assert!(ipdf_json(&viz_args(&los, &figure, &drawn))["width"].as_u64() > Some(0));
+    assert_fails(
+        &viz_args(&los, &figure, &["--rgb", s(&rgb), "--mask", s(&box_mask)]),
+        "which needs the camera's intrinsics",
+    );
     let depth_scale = &read_json(&scene.join("scene_camera.json"))["0"]["depth_scale"];
     let depth_camera = dir.path().join("depth_camera.json");
     let camera_json = serde_json::json!({"cam_K": k, "depth_scale": depth_scale});
