@@ -4,7 +4,8 @@ mod common;
 use std::path::Path;
 
 use ipdf_model::rotation::{
-    ImplicitPdf, LabelledImages, QuerySampling, RotationFrame, TrainOptions, Trainer,
+    ENSEMBLE_FILE, ImplicitPdf, LabelledImages, QuerySampling, RotationFrame, TrainOptions,
+    Trainer, write_ensemble,
 };
 use ipdf_model::{
     Augmentation, CHECKPOINT_FILE, CheckpointInfo, EncoderKind, FitOptions, ModelConfig,
@@ -365,4 +366,41 @@ fn bad_images_and_labels_are_typed_errors() {
         ),
         "{err}"
     );
+}
+
+#[test]
+fn an_ensemble_loads_the_members_its_file_names_and_refuses_a_bad_list() {
+    let dir = tempfile::tempdir().unwrap();
+    let at = |seed, input_size| {
+        let config = ModelConfig {
+            seed,
+            input_size,
+            ..config()
+        };
+        ImplicitPdf::new(config, Device::Cpu).unwrap()
+    };
+    at(0, SIZE).save(dir.path()).unwrap();
+    let second = at(1, SIZE);
+    second.save(&dir.path().join("member-2")).unwrap();
+    // Without the file, the folder is one model.
+    let load = || ImplicitPdf::load_ensemble(dir.path(), Device::Cpu);
+    assert_eq!(load().unwrap().len(), 1);
+    write_ensemble(dir.path(), &["member-2".into()]).unwrap();
+    let members = load().unwrap();
+    assert_eq!(members.len(), 2);
+    assert!(head_weight(&members[1]).equal(&head_weight(&second)));
+    assert!(!head_weight(&members[0]).equal(&head_weight(&second)));
+    let refused = |text: &str, expected: &str| {
+        std::fs::write(dir.path().join(ENSEMBLE_FILE), text).unwrap();
+        let error = load().unwrap_err().to_string();
+        assert!(error.contains(expected), "{text}: {error}");
+    };
+    refused(r#"{"members": 3}"#, "ensemble.json: members");
+    refused(r#"{"members": ["member-3"]}"#, "member-3");
+    at(2, 24).save(&dir.path().join("member-4")).unwrap();
+    refused(r#"{"members": ["member-4"]}"#, "24-pixel crops");
+    // Naming no member removes the file.
+    write_ensemble(dir.path(), &[]).unwrap();
+    assert!(!dir.path().join(ENSEMBLE_FILE).exists());
+    assert_eq!(load().unwrap().len(), 1);
 }

@@ -303,3 +303,111 @@ proptest! {
         prop_assert!((nll - std::f64::consts::PI.powi(2).ln()).abs() < 1e-9);
     }
 }
+
+/// Two members that differ in seed and head width, the crop and the rotations to score.
+fn two_members(seed: u64) -> [ImplicitPdf; 2] {
+    let config = |seed, width| ModelConfig {
+        seed,
+        head_sizes: vec![width, width],
+        ..ModelConfig::small(32)
+    };
+    [
+        ImplicitPdf::new(config(seed, 32), Device::Cpu).unwrap(),
+        ImplicitPdf::new(config(seed + 1, 16), Device::Cpu).unwrap(),
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(4))]
+
+    /// An ensemble's `F` is the mean of its members' `F`, each scored by a predictor of its
+    /// own: on a cached grid level's cells and at arbitrary rotations, with or without views
+    /// of the crop. Its distribution on a grid is then the members' normalised geometric
+    /// mean, and its argmax reports the mean `F` where it ends.
+    #[test]
+    fn an_ensembles_score_is_the_mean_of_its_members(
+        seed in 0u64..1_000, image_seed in 0i64..1_000, views in 0usize..3,
+        yaw in -3.1f64..3.1, pitch in -1.5f64..1.5, roll in -3.1f64..3.1,
+    ) {
+        let models = two_members(seed);
+        let image = images(1, 32, image_seed).get(0);
+        let mut together =
+            Predictor::ensemble(&models, Precision::Model).unwrap().with_views(views).unwrap();
+        let mut alone: Vec<Predictor> = models
+            .iter()
+            .map(|m| Predictor::new(m).with_views(views).unwrap())
+            .collect();
+        let term = together.image_term(&image).unwrap();
+        let terms: Vec<Tensor> = alone.iter().map(|p| p.image_term(&image).unwrap()).collect();
+        let cells: Vec<u64> = (0..4_608).step_by(53).collect();
+        let rotations = [
+            UnitQuaternion::from_euler_angles(roll, pitch, yaw),
+            UnitQuaternion::from_euler_angles(yaw, roll, pitch),
+        ];
+        let ensemble_cells = together.cell_scores(&term, 2, &cells).unwrap();
+        let ensemble_rotations = together.rotation_scores(&term, &rotations).unwrap();
+        let mut member_cells = Vec::new();
+        let mut member_rotations = Vec::new();
+        for (predictor, term) in alone.iter_mut().zip(&terms) {
+            member_cells.push(predictor.cell_scores(term, 2, &cells).unwrap());
+            member_rotations.push(predictor.rotation_scores(term, &rotations).unwrap());
+        }
+        for (i, f) in ensemble_cells.iter().enumerate() {
+            let mean = (member_cells[0][i] + member_cells[1][i]) / 2.0;
+            prop_assert!((f - mean).abs() < 1e-5, "cell {}: {} against {}", cells[i], f, mean);
+        }
+        for (i, f) in ensemble_rotations.iter().enumerate() {
+            let mean = (member_rotations[0][i] + member_rotations[1][i]) / 2.0;
+            prop_assert!((f - mean).abs() < 1e-5, "rotation {}: {} against {}", i, f, mean);
+        }
+        let masses = together.probabilities_for(&term, 1).unwrap();
+        let p = alone[0].probabilities_for(&terms[0], 1).unwrap();
+        let q = alone[1].probabilities_for(&terms[1], 1).unwrap();
+        let geometric: Vec<f64> = p.iter().zip(&q).map(|(a, b)| (a * b).sqrt()).collect();
+        let total: f64 = geometric.iter().sum();
+        for (m, g) in masses.iter().zip(&geometric) {
+            prop_assert!((m - g / total).abs() < 1e-9 * (1.0 + g / total), "{} against {}", m, g / total);
+        }
+        let options = ArgmaxOptions {
+            refine: RefineOptions::to_level(2),
+            steps: 5,
+            ..ArgmaxOptions::default()
+        };
+        let best = together.argmax(&image, &options).unwrap();
+        let at_best: Vec<f64> = alone
+            .iter()
+            .zip(&terms)
+            .map(|(p, t)| p.rotation_scores(t, &[best.rotation]).unwrap()[0])
+            .collect();
+        let mean = (at_best[0] + at_best[1]) / 2.0;
+        prop_assert!((best.score - mean).abs() < 1e-4, "{} against {}", best.score, mean);
+    }
+}
+
+#[test]
+fn models_that_read_other_crops_form_no_ensemble() {
+    let message = |models: &[ImplicitPdf]| match Predictor::ensemble(models, Precision::Model) {
+        Ok(_) => String::new(),
+        Err(e) => e.to_string(),
+    };
+    assert!(message(&[]).contains("members"));
+    let [a, _] = two_members(0);
+    let wider = ImplicitPdf::new(ModelConfig::small(48), Device::Cpu).unwrap();
+    let refused = message(&[a, wider]);
+    assert!(
+        refused.contains("members") && refused.contains("48-pixel"),
+        "{refused}"
+    );
+    let [a, _] = two_members(0);
+    let turned = ImplicitPdf::new(
+        ModelConfig {
+            rotation_frame: ipdf_model::rotation::RotationFrame::LineOfSight,
+            ..ModelConfig::small(32)
+        },
+        Device::Cpu,
+    )
+    .unwrap();
+    let refused = message(&[a, turned]);
+    assert!(refused.contains("line-of-sight frame"), "{refused}");
+    assert!(message(&two_members(3)).is_empty());
+}

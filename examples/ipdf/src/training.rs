@@ -6,7 +6,9 @@ use std::path::{Path, PathBuf};
 
 use bop_dataset::BopDataset;
 use bop_dataset::Progress;
-use ipdf_model::rotation::{ImplicitPdf, LabelledImages, QuerySampling, TrainOptions, Trainer};
+use ipdf_model::rotation::{
+    ImplicitPdf, LabelledImages, QuerySampling, TrainOptions, Trainer, write_ensemble,
+};
 use ipdf_model::translation::{
     LabelledTranslations, TranslationConfig, TranslationPdf, TranslationSpace,
     TranslationTrainOptions, TranslationTrainer,
@@ -260,6 +262,78 @@ pub fn train_model(request: &TrainRequest, progress: &dyn Progress) -> Result<Tr
         images_per_s: last.map(|r| r.images_per_second),
         seconds: reports.iter().map(|r| r.seconds).sum(),
     })
+}
+
+/// The most members an ensemble of rotation models has.
+pub const MAX_MEMBERS: usize = 8;
+
+/// The requests of an ensemble of `members` rotation models on the data of `request`: the
+/// first is `request` itself, the `k`-th trains in `member-k` inside its run folder with both
+/// seeds (the weights', and the batches', queries' and augmentation's) raised by `k − 1`.
+/// Anything but a rotation model, or more than [`MAX_MEMBERS`], is refused.
+pub fn ensemble_requests(
+    request: &TrainRequest,
+    members: usize,
+) -> Result<Vec<TrainRequest>, Error> {
+    if !(1..=MAX_MEMBERS).contains(&members) {
+        return Err(Error::option(
+            "members",
+            format!("{members}: expected 1 to {MAX_MEMBERS}"),
+        ));
+    }
+    if members > 1 && request.target != Target::Rotation {
+        return Err(Error::option(
+            "members",
+            format!("{members}: only rotation models form ensembles"),
+        ));
+    }
+    Ok((1..=members)
+        .map(|k| {
+            let raise = k as u64 - 1;
+            TrainRequest {
+                model: ModelConfig {
+                    seed: request.model.seed + raise,
+                    ..request.model.clone()
+                },
+                out: if k == 1 {
+                    request.out.clone()
+                } else {
+                    request.out.join(member_name(k))
+                },
+                seed: request.seed + raise,
+                ..request.clone()
+            }
+        })
+        .collect())
+}
+
+/// Names the `members − 1` other members of [`ensemble_requests`] in the first's run folder
+/// `out` ([`ENSEMBLE_FILE`](ipdf_model::rotation::ENSEMBLE_FILE)), once they are trained: every
+/// reader of the checkpoint ([`ImplicitPdf::load_ensemble`]) then scores them together. One
+/// member removes a stale file.
+pub fn name_members(out: &Path, members: usize) -> Result<(), Error> {
+    let names: Vec<String> = (2..=members).map(member_name).collect();
+    Ok(write_ensemble(out, &names)?)
+}
+
+/// The folder of an ensemble's `k`-th member, relative to the first's.
+fn member_name(k: usize) -> String {
+    format!("member-{k}")
+}
+
+/// Trains (or resumes) the [`ensemble_requests`] one after the other ([`train_model`] each),
+/// then [`name_members`]; `progress` restarts with each member.
+pub fn train_ensemble(
+    request: &TrainRequest,
+    members: usize,
+    progress: &dyn Progress,
+) -> Result<Vec<TrainResult>, Error> {
+    let results = ensemble_requests(request, members)?
+        .iter()
+        .map(|member| train_model(member, progress))
+        .collect::<Result<Vec<_>, _>>()?;
+    name_members(&request.out, members)?;
+    Ok(results)
 }
 
 /// How many of `validation`'s crops `request` validates on.

@@ -6,19 +6,11 @@ mod common;
 use std::path::Path;
 
 use common::{
-    BRIEF_TRAINING, SMALL_NETWORK, assert_fails, copy_dir, ipdf_json, predict_args, read_json, s,
-    synth, train_single, viz_args,
+    BRIEF_TRAINING, SMALL_NETWORK, assert_fails, copy_dir, ipdf_json, predict_args, read_json,
+    read_npy, s, synth, train_single, viz_args,
 };
 use nalgebra::{Quaternion, Unit, UnitQuaternion, Vector3};
 use serde_json::Value;
-
-/// The float32 rows of a 2-D `.npy` file and its shape.
-fn read_npy(path: &Path) -> (Vec<u64>, Vec<f32>) {
-    let bytes = std::fs::read(path).unwrap();
-    let npy = npyz::NpyFile::new(&bytes[..]).unwrap();
-    let shape = npy.shape().to_vec();
-    (shape, npy.into_vec::<f32>().unwrap())
-}
 
 /// The unit quaternion of a JSON `[w, x, y, z]`.
 fn quaternion(value: &Value) -> UnitQuaternion<f64> {

@@ -1,13 +1,48 @@
 //! Saving and loading rotation models and their training state (see [`crate::CheckpointInfo`]).
 use std::path::Path;
 
+use serde::{Deserialize, Serialize};
 use tch::Device;
 
+use super::predict::member_mismatch;
 use super::{ImplicitPdf, Trainer};
 use crate::ModelError;
 use crate::checkpoint::{
     CHECKPOINT_FILE, CheckpointInfo, empty_info, load_exact, restore_adam, write_checkpoint,
+    write_text_atomically,
 };
+
+/// The file in a rotation model's checkpoint that names the other members of its ensemble
+/// ([`ImplicitPdf::load_ensemble`]).
+pub const ENSEMBLE_FILE: &str = "ensemble.json";
+
+/// The contents of [`ENSEMBLE_FILE`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct EnsembleInfo {
+    /// The other members' checkpoint folders, relative to the folder of the file.
+    members: Vec<String>,
+}
+
+/// Names `members` (checkpoint folders relative to `dir`) as the other members of the ensemble
+/// whose first member is the checkpoint in `dir`, written atomically; none removes the file.
+pub fn write_ensemble(dir: &Path, members: &[String]) -> Result<(), ModelError> {
+    let path = dir.join(ENSEMBLE_FILE);
+    if members.is_empty() {
+        return match std::fs::remove_file(&path) {
+            Err(source) if source.kind() != std::io::ErrorKind::NotFound => {
+                Err(ModelError::Io { path, source })
+            }
+            _ => Ok(()),
+        };
+    }
+    let info = EnsembleInfo {
+        members: members.to_vec(),
+    };
+    let text = serde_json::to_string_pretty(&info)
+        .map_err(|e| ModelError::checkpoint(&path, e.to_string()))?;
+    write_text_atomically(&path, &text)
+}
 
 impl ImplicitPdf {
     /// Writes the model as a checkpoint in `dir` (created if missing), with no training state.
@@ -32,6 +67,36 @@ impl ImplicitPdf {
         let mut model = ImplicitPdf::new(info.model.clone(), device)?;
         load_exact(model.var_store_mut(), &dir.join(&info.weights))?;
         Ok(model)
+    }
+
+    /// The models of the checkpoint in `dir`: its own, then those of the members its
+    /// [`ENSEMBLE_FILE`] names, if it has one ([`crate::rotation::Predictor::ensemble`] scores
+    /// them together). A member that is missing, unreadable, or reads other crops than the first
+    /// (input size, rotation frame) is refused, naming the file.
+    pub fn load_ensemble(dir: &Path, device: Device) -> Result<Vec<Self>, ModelError> {
+        let first = ImplicitPdf::load(dir, device)?;
+        let path = dir.join(ENSEMBLE_FILE);
+        let text = match std::fs::read_to_string(&path) {
+            Ok(text) => text,
+            Err(source) if source.kind() == std::io::ErrorKind::NotFound => {
+                return Ok(vec![first]);
+            }
+            Err(source) => return Err(ModelError::Io { path, source }),
+        };
+        let info: EnsembleInfo = serde_json::from_str(&text)
+            .map_err(|e| ModelError::checkpoint(&path, format!("members: {e}")))?;
+        let mut models = vec![first];
+        for member in &info.members {
+            let model = ImplicitPdf::load(&dir.join(member), device)?;
+            if let Some(difference) = member_mismatch(&models[0], &model) {
+                return Err(ModelError::checkpoint(
+                    &path,
+                    format!("members: {member:?} {difference}"),
+                ));
+            }
+            models.push(model);
+        }
+        Ok(models)
     }
 }
 

@@ -28,6 +28,7 @@ mod train;
 mod views;
 
 pub use crate::encoding::{encode_rotations, rotations_to_tensor};
+pub use checkpoint::{ENSEMBLE_FILE, write_ensemble};
 pub use fit::{LabelledImages, validation_llh};
 pub use frame::RotationFrame;
 pub use loss::{LabelLoss, QuerySampling, label_set_from_matrices, set_nll};

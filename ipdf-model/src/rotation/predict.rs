@@ -86,14 +86,25 @@ pub struct Argmax {
     pub start_score: f64,
 }
 
-/// Evaluates a model's density for one image at a time, caching grids and the query terms of
-/// fixed grids across images.
+/// Evaluates a model's density, or an ensemble's, for one image at a time, caching grids and
+/// the query terms of fixed grids across images.
+///
+/// An ensemble ([`Predictor::ensemble`]) scores a rotation by the mean of its members' `F`:
+/// its density is the normalised geometric mean of theirs (log-linear pooling), which keeps
+/// where the members agree and lowers where any of them doubts. Members trained from other
+/// seeds on the same examples disagree most where one network's answer is chance.
 pub struct Predictor<'m> {
+    members: Vec<Member<'m>>,
+    grids: HashMap<u8, Grid>,
+    extra_views: usize,
+}
+
+/// One model of a [`Predictor`]: its head in the grid evaluations' precision, and its query
+/// terms of whole grid levels.
+struct Member<'m> {
     model: &'m ImplicitPdf,
     head: Head,
-    grids: HashMap<u8, Grid>,
     query_terms: HashMap<u8, Tensor>,
-    extra_views: usize,
 }
 
 /// The [`Predictor::under_resolution`] above which a grid's level is too coarse for a model:
@@ -112,15 +123,48 @@ impl<'m> Predictor<'m> {
 
     /// A predictor whose grid evaluations run the head in `precision`.
     pub fn with_precision(model: &'m ImplicitPdf, precision: Precision) -> Self {
-        let kind = match precision {
-            Precision::Model => model.kind(),
-            Precision::BFloat16 => Kind::BFloat16,
+        Self::of_members(std::slice::from_ref(model), precision)
+    }
+
+    /// A predictor for the ensemble of `models`, whose `F` is the mean of theirs (see
+    /// [`Predictor`]). They must read the same crops in the same frame: an empty list, or
+    /// members whose input size, rotation frame or device differ, are refused.
+    pub fn ensemble(models: &'m [ImplicitPdf], precision: Precision) -> Result<Self, ModelError> {
+        let Some(first) = models.first() else {
+            return Err(ModelError::option(
+                "members",
+                "an ensemble needs at least one model",
+            ));
         };
+        for (i, model) in models.iter().enumerate().skip(1) {
+            if let Some(difference) = member_mismatch(first, model) {
+                return Err(ModelError::option(
+                    "members",
+                    format!("member {}: {difference}", i + 1),
+                ));
+            }
+        }
+        Ok(Self::of_members(models, precision))
+    }
+
+    fn of_members(models: &'m [ImplicitPdf], precision: Precision) -> Self {
+        let members = models
+            .iter()
+            .map(|model| {
+                let kind = match precision {
+                    Precision::Model => model.kind(),
+                    Precision::BFloat16 => Kind::BFloat16,
+                };
+                Member {
+                    model,
+                    head: model.head().to_kind(kind),
+                    query_terms: HashMap::new(),
+                }
+            })
+            .collect();
         Self {
-            model,
-            head: model.head().to_kind(kind),
+            members,
             grids: HashMap::new(),
-            query_terms: HashMap::new(),
             extra_views: 0,
         }
     }
@@ -134,26 +178,64 @@ impl<'m> Predictor<'m> {
         Ok(self)
     }
 
-    /// The query term `[N, H]` of rotation matrices `[N, 9]` in the predictor's precision.
-    fn query_term(&self, rotations: &Tensor) -> Tensor {
-        let encoded = encode_rotations(
-            &rotations.to_kind(self.model.kind()),
-            self.model.config().fourier_components,
-        );
-        tch::no_grad(|| self.head.query_term(&encoded.to_kind(self.head.kind())))
+    /// The first member, whose crop size, frame and device every member shares.
+    fn first(&self) -> &'m ImplicitPdf {
+        self.members[0].model
     }
 
-    /// `F` as doubles for an image term from [`Predictor::image_term`] and query terms.
-    fn scores(&self, image_term: &Tensor, query_term: &Tensor) -> Tensor {
+    /// The members' query terms (each `[N, H]`) of rotation matrices `[N, 9]` in the
+    /// predictor's precision.
+    fn query_terms(&self, rotations: &Tensor) -> Vec<Tensor> {
+        self.members
+            .iter()
+            .map(|member| {
+                let model = member.model;
+                let encoded = encode_rotations(
+                    &rotations.to_kind(model.kind()),
+                    model.config().fourier_components,
+                );
+                tch::no_grad(|| member.head.query_term(&encoded.to_kind(member.head.kind())))
+            })
+            .collect()
+    }
+
+    /// `F` as doubles, the mean over the members, for an image term from
+    /// [`Predictor::image_term`] and the members' query terms, in the predictor's precision.
+    fn scores(&self, image_term: &Tensor, query_terms: &[Tensor]) -> Tensor {
         tch::no_grad(|| {
-            self.head
-                .scores(&image_term.to_kind(self.head.kind()), query_term)
-                .to_kind(Kind::Double)
+            self.member_mean(image_term, |k, member, term| {
+                member
+                    .head
+                    .scores(&term.to_kind(member.head.kind()), &query_terms[k])
+                    .to_kind(Kind::Double)
+            })
         })
     }
 
-    /// The image term `[1, H]` of one crop (`[3, S, S]` or `[1, 3, S, S]`, values in `[0, 1]`),
-    /// averaged over its views ([`Predictor::with_views`]).
+    /// The mean over the members `k` of `f(k, member, its part of image_term)`.
+    fn member_mean(
+        &self,
+        image_term: &Tensor,
+        f: impl Fn(usize, &Member, Tensor) -> Tensor,
+    ) -> Tensor {
+        let mut offset = 0;
+        let values: Vec<Tensor> = self
+            .members
+            .iter()
+            .enumerate()
+            .map(|(k, member)| {
+                let term = image_term.narrow(1, offset, member.width());
+                offset += member.width();
+                f(k, member, term)
+            })
+            .collect();
+        let kind = values[0].kind();
+        Tensor::stack(&values, 0).mean_dim(0, false, kind)
+    }
+
+    /// The image term of one crop (`[3, S, S]` or `[1, 3, S, S]`, values in `[0, 1]`): each
+    /// member's `[1, H]`, averaged over the crop's views ([`Predictor::with_views`]), side by
+    /// side.
     pub fn image_term(&self, image: &Tensor) -> Result<Tensor, ModelError> {
         let batch = if image.dim() == 3 {
             image.unsqueeze(0)
@@ -163,15 +245,24 @@ impl<'m> Predictor<'m> {
         if batch.dim() != 4 || batch.size()[0] != 1 {
             return Err(ModelError::ImageShape {
                 field: "image",
-                expected: format!("one crop [3, {s}, {s}]", s = self.model.config().input_size),
+                expected: format!(
+                    "one crop [3, {s}, {s}]",
+                    s = self.first().config().input_size
+                ),
                 got: format!("{:?}", image.size()),
             });
         }
+        let views = crop_views(&batch, self.extra_views);
         tch::no_grad(|| {
             let terms = self
-                .model
-                .image_term(&crop_views(&batch, self.extra_views), false)?;
-            Ok(terms.mean_dim(0, true, terms.kind()))
+                .members
+                .iter()
+                .map(|member| {
+                    let terms = member.model.image_term(&views, false)?;
+                    Ok(terms.mean_dim(0, true, terms.kind()))
+                })
+                .collect::<Result<Vec<_>, ModelError>>()?;
+            Ok(Tensor::cat(&terms, 1))
         })
     }
 
@@ -190,7 +281,7 @@ impl<'m> Predictor<'m> {
         level: u8,
         cells: &[u64],
     ) -> Result<Vec<f64>, ModelError> {
-        if let Some(term) = self.cached_query_term(level)? {
+        if let Some(terms) = self.cached_query_terms(level)? {
             let count = cell_count(level);
             if let Some(&bad) = cells.iter().find(|&&index| index >= count) {
                 return Err(so3_grid::GridError::CellOutOfRange {
@@ -203,8 +294,12 @@ impl<'m> Predictor<'m> {
             let rows: Vec<i64> = cells.iter().map(|&index| index as i64).collect();
             let mut out = Vec::with_capacity(cells.len());
             for chunk in rows.chunks(CHUNK) {
-                let index = Tensor::from_slice(chunk).to_device(term.device());
-                let scores = self.scores(image_term, &term.index_select(0, &index));
+                let index = Tensor::from_slice(chunk).to_device(self.first().device());
+                let parts: Vec<Tensor> = terms
+                    .iter()
+                    .map(|term| term.index_select(0, &index))
+                    .collect();
+                let scores = self.scores(image_term, &parts);
                 out.extend(Vec::<f64>::try_from(&scores)?);
             }
             return Ok(out);
@@ -217,22 +312,31 @@ impl<'m> Predictor<'m> {
         self.rotation_scores(image_term, &rotations)
     }
 
-    /// The query term `[N, H]` of every cell of the `level` grid, computed on first use, or
-    /// `None` when it would take more than [`CACHE_BYTES`].
-    fn cached_query_term(&mut self, level: u8) -> Result<Option<Tensor>, ModelError> {
+    /// The members' query terms (each `[N, H]`) of every cell of the `level` grid, computed on
+    /// first use, or `None` when they would take more than [`CACHE_BYTES`].
+    fn cached_query_terms(&mut self, level: u8) -> Result<Option<Vec<Tensor>>, ModelError> {
         let count = cell_count(level) as usize;
-        let width = self.model.config().head_sizes[0] as usize;
-        let bytes = count * width * self.head.kind().elt_size_in_bytes();
+        let bytes: usize = self
+            .members
+            .iter()
+            .map(|member| count * member.width() as usize * member.head.kind().elt_size_in_bytes())
+            .sum();
         if bytes > CACHE_BYTES {
             return Ok(None);
         }
-        if !self.query_terms.contains_key(&level) {
+        if !self.members[0].query_terms.contains_key(&level) {
             let rotations = self.grid(level)?.rotations();
-            let queries = rotations_to_tensor(&rotations, self.model.device());
-            let term = self.query_term(&queries);
-            self.query_terms.insert(level, term);
+            let queries = rotations_to_tensor(&rotations, self.first().device());
+            let terms = self.query_terms(&queries);
+            for (member, term) in self.members.iter_mut().zip(terms) {
+                member.query_terms.insert(level, term);
+            }
         }
-        Ok(self.query_terms.get(&level).map(Tensor::shallow_clone))
+        Ok(self
+            .members
+            .iter()
+            .map(|member| member.query_terms.get(&level).map(Tensor::shallow_clone))
+            .collect())
     }
 
     /// `F` at arbitrary rotations, for an image term from [`Predictor::image_term`].
@@ -243,8 +347,8 @@ impl<'m> Predictor<'m> {
     ) -> Result<Vec<f64>, ModelError> {
         let mut out = Vec::with_capacity(rotations.len());
         for chunk in rotations.chunks(CHUNK) {
-            let queries = rotations_to_tensor(chunk, self.model.device());
-            let scores = self.scores(image_term, &self.query_term(&queries));
+            let queries = rotations_to_tensor(chunk, self.first().device());
+            let scores = self.scores(image_term, &self.query_terms(&queries));
             out.extend(Vec::<f64>::try_from(&scores)?);
         }
         Ok(out)
@@ -343,15 +447,22 @@ impl<'m> Predictor<'m> {
     /// `F` at every cell centre of the `level` grid, `[N]` (double), chunked; the grid's query
     /// term is computed once and kept while it fits the cache.
     pub fn grid_scores(&mut self, image_term: &Tensor, level: u8) -> Result<Tensor, ModelError> {
-        let Some(term) = self.cached_query_term(level)? else {
+        let Some(terms) = self.cached_query_terms(level)? else {
             let cells: Vec<u64> = (0..cell_count(level)).collect();
             let scores = self.cell_scores(image_term, level, &cells)?;
             return Ok(Tensor::from_slice(&scores));
         };
-        let chunks: Vec<Tensor> = term
-            .split(CHUNK as i64, 0)
-            .iter()
-            .map(|part| self.scores(image_term, part))
+        let count = cell_count(level) as i64;
+        let chunks: Vec<Tensor> = (0..count)
+            .step_by(CHUNK)
+            .map(|start| {
+                let length = (count - start).min(CHUNK as i64);
+                let parts: Vec<Tensor> = terms
+                    .iter()
+                    .map(|term| term.narrow(0, start, length))
+                    .collect();
+                self.scores(image_term, &parts)
+            })
             .collect();
         Ok(Tensor::cat(&chunks, 0))
     }
@@ -435,14 +546,17 @@ impl<'m> Predictor<'m> {
             let (level, index) = masses.cells[position];
             starts.push(self.grid(level)?.rotation(index)?);
         }
-        let device = self.model.device();
+        let device = self.first().device();
         let bases = rotations_to_tensor(&starts, device).reshape([-1, 3, 3]);
         let count = starts.len() as i64;
         let mut tangent = Tensor::zeros([count, 3], (Kind::Float, device)).set_requires_grad(true);
         let score_at = |tangent: &Tensor| {
             let rotations = bases.matmul(&exp_map(tangent)).reshape([count, 9]);
-            self.model
-                .scores(image_term, &self.model.query_term(&rotations))
+            self.member_mean(image_term, |_, member, term| {
+                member
+                    .model
+                    .scores(&term, &member.model.query_term(&rotations))
+            })
         };
         let start_scores =
             Vec::<f64>::try_from(tch::no_grad(|| score_at(&tangent)).to_kind(Kind::Double))?;
@@ -492,6 +606,34 @@ impl<'m> Predictor<'m> {
             score: best_scores[best],
             start_score: start_scores[best],
         })
+    }
+}
+
+/// How `member` reads other crops than `first` (input size, rotation frame, device), if it
+/// does: such models cannot form an ensemble.
+pub(crate) fn member_mismatch(first: &ImplicitPdf, member: &ImplicitPdf) -> Option<String> {
+    let (a, b) = (first.config(), member.config());
+    (a.input_size != b.input_size
+        || a.rotation_frame != b.rotation_frame
+        || first.device() != member.device())
+    .then(|| {
+        format!(
+            "reads {}-pixel crops in the {} frame on {:?}, the first model {}-pixel crops in \
+             the {} frame on {:?}",
+            b.input_size,
+            b.rotation_frame.name(),
+            member.device(),
+            a.input_size,
+            a.rotation_frame.name(),
+            first.device()
+        )
+    })
+}
+
+impl Member<'_> {
+    /// The width of its image and query terms.
+    fn width(&self) -> i64 {
+        self.model.config().head_sizes[0]
     }
 }
 

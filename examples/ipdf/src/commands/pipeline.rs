@@ -6,6 +6,7 @@ use anyhow::{Context, Result};
 use bop_dataset::{BopDataset, camera_from_json, read_json};
 use depth_render::SensorPreset;
 use ipdf::pipeline::{MeshRequest, Plan, Preset, RealSplit, run_mesh_pipeline, run_pipeline};
+use ipdf::training::MAX_MEMBERS;
 use ipdf_model::rotation::RotationFrame;
 use synth_data::{Placement, Randomization};
 
@@ -54,6 +55,10 @@ pub struct PipelineArgs {
     /// the line of sight's.
     #[arg(long, value_parser = choice::<RotationFrame>())]
     pub rotation_frame: Option<RotationFrame>,
+    /// Rotation models per ensemble instead of the preset's one (`ipdf train --members`): each
+    /// costs a rotation training; their densities are multiplied and renormalised.
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=MAX_MEMBERS as u64))]
+    pub rotation_members: Option<u64>,
     /// One object of your own instead of the built-in three (.ply/.obj, its texture image or
     /// vertex colours shown): randomised renders of it, pseudo labels, a rotation and a
     /// translation model, scored on the renders and on `--real` (needs `--camera`).
@@ -143,6 +148,9 @@ fn plan(args: &PipelineArgs, preset: Plan) -> Plan {
         },
         epochs: args.epochs.unwrap_or(preset.epochs),
         rotation_frame: args.rotation_frame.unwrap_or(preset.rotation_frame),
+        rotation_members: args
+            .rotation_members
+            .map_or(preset.rotation_members, |k| k as usize),
         translation_epochs: args
             .translation_epochs
             .or(args.epochs)

@@ -21,7 +21,7 @@ use ipdf::eval::{DEPTH_HYPOTHESES, HYPOTHESIS_SPACING_DEG};
 use ipdf::npy::write_f32;
 use ipdf::run_info::RunInfo;
 use ipdf::training_data::{CropError, FileCrop, crop_file_box, crop_files, crop_tensor};
-use ipdf_model::rotation::{ArgmaxOptions, ImplicitPdf, Predictor};
+use ipdf_model::rotation::{ArgmaxOptions, ImplicitPdf, Precision, Predictor};
 use ipdf_model::translation::{CropGeometry, TranslationPdf};
 use ipdf_model::{ImageBox, default_device};
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
@@ -102,9 +102,12 @@ pub fn run(args: &PredictArgs) -> Result<Value> {
         bail!("--depth needs --mask: the object's own pixels (a box holds the background too)");
     }
     let translation_only = is_translation_run(&args.checkpoint)?;
-    let rotation = (!translation_only)
-        .then(|| ImplicitPdf::load(&args.checkpoint, default_device()))
-        .transpose()?;
+    // One model, or the members of an ensemble (`ensemble.json`), the first's settings shared.
+    let members = (!translation_only)
+        .then(|| ImplicitPdf::load_ensemble(&args.checkpoint, default_device()))
+        .transpose()?
+        .unwrap_or_default();
+    let rotation = members.first();
     // A pose run without intrinsics predicts the orientation, and says so once it has.
     let (translation, skipped) = match &rotation {
         None => (
@@ -145,7 +148,7 @@ pub fn run(args: &PredictArgs) -> Result<Value> {
             .map_or_else(UnitQuaternion::identity, |g| {
                 model.config().rotation_frame.to_camera(g)
             });
-        let (value, best, hypotheses) = predict_rotation(model, &crop, &turn, args)?;
+        let (value, best, hypotheses) = predict_rotation(&members, &crop, &turn, args)?;
         result = value;
         most_likely = Some(best);
         if let Some(view) = &depth_view {
@@ -190,15 +193,17 @@ pub fn run(args: &PredictArgs) -> Result<Value> {
 /// The rotation distribution written to `--out`, the JSON of the most likely rotation and the
 /// densest cells, the most likely rotation, and the rotation hypotheses a pose is refined from
 /// with depth; `turn` takes the model's frame into the camera's, in which every rotation is
-/// given (the distribution's cells are the grid's rotations turned by it).
+/// given (the distribution's cells are the grid's rotations turned by it). `models`: one model,
+/// or an ensemble's members.
 fn predict_rotation(
-    model: &ImplicitPdf,
+    models: &[ImplicitPdf],
     crop: &FileCrop,
     turn: &UnitQuaternion<f64>,
     args: &PredictArgs,
 ) -> Result<(Value, UnitQuaternion<f64>, Vec<UnitQuaternion<f64>>)> {
-    let crop = crop_tensor(&crop.pixels, model.config().input_size as usize);
-    let mut predictor = Predictor::new(model).with_views(args.views.into())?;
+    let mut predictor =
+        Predictor::ensemble(models, Precision::Model)?.with_views(args.views.into())?;
+    let crop = crop_tensor(&crop.pixels, models[0].config().input_size as usize);
     // The encoder runs once: the grid's masses and the argmax share the crop's image term.
     let image_term = predictor.image_term(&crop)?;
     let masses = predictor.probabilities_for(&image_term, args.level)?;

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::{Result, bail};
 use ipdf::progress::bar;
-use ipdf::training::{TRANSLATION_DIR, Target, TrainRequest, train_model};
+use ipdf::training::{MAX_MEMBERS, TRANSLATION_DIR, Target, TrainRequest, train_ensemble};
 use ipdf::training_data::{CropSource, LabelSource};
 use ipdf_model::rotation::RotationFrame;
 use ipdf_model::{EncoderKind, ModelConfig};
@@ -113,6 +113,11 @@ pub struct TrainArgs {
     /// the image's intrinsics). `ipdf pipeline --mesh` trains in the line of sight's.
     #[arg(long, value_parser = choice::<RotationFrame>(), default_value = "camera")]
     pub rotation_frame: RotationFrame,
+    /// Rotation models trained as one ensemble, whose densities are multiplied and
+    /// renormalised wherever the checkpoint is read: the first in --out, the k-th in
+    /// --out/member-k from seed + k − 1, listed in --out/ensemble.json. Each costs a training.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..=MAX_MEMBERS as u64))]
+    pub members: u64,
     /// Pretrained encoder weights (.safetensors with torchvision names).
     #[arg(long)]
     pub pretrained: Option<PathBuf>,
@@ -129,6 +134,12 @@ pub fn run(args: &TrainArgs, seed: u64) -> Result<serde_json::Value> {
     }
     if !(0.0..=10.0).contains(&args.blur) {
         bail!("--blur must be in 0..=10 crop pixels, got {}", args.blur);
+    }
+    if args.members > 1 && args.target == Target::Translation {
+        bail!(
+            "--members {}: only rotation models form ensembles",
+            args.members
+        );
     }
     if args.out.exists() && !args.out.is_dir() {
         bail!("--out {}: exists and is not a folder", args.out.display());
@@ -171,17 +182,24 @@ pub fn run(args: &TrainArgs, seed: u64) -> Result<serde_json::Value> {
             Target::Translation => args.translation_learning_rate.unwrap_or(args.learning_rate),
             _ => args.learning_rate,
         };
-        let result = train_model(
-            &TrainRequest {
-                target,
-                out,
-                learning_rate,
-                ..request.clone()
-            },
-            &progress,
-        )?;
+        let members = match target {
+            Target::Translation => 1,
+            _ => args.members as usize,
+        };
+        let request = TrainRequest {
+            target,
+            out,
+            learning_rate,
+            ..request.clone()
+        };
+        let mut results = train_ensemble(&request, members, &progress)?.into_iter();
         progress.finish_and_clear();
-        Ok(serde_json::to_value(result)?)
+        let mut first = serde_json::to_value(results.next())?;
+        let others: Vec<_> = results.collect();
+        if !others.is_empty() {
+            first["members"] = serde_json::to_value(others)?;
+        }
+        Ok(first)
     };
     match args.target {
         Target::Pose => Ok(serde_json::json!({

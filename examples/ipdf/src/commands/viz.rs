@@ -67,7 +67,8 @@ pub fn run(args: &VizArgs) -> Result<serde_json::Value> {
         plot_training_curves(&text, &path)?
     } else if let Some(run) = &args.checkpoint {
         let info = RunInfo::read(run)?;
-        let model = ImplicitPdf::load(run, default_device())?;
+        let members = ImplicitPdf::load_ensemble(run, default_device())?;
+        let model = &members[0];
         let size = model.config().input_size as usize;
         let title = format!("{}, trained on {} labels", info.object, info.labels);
         match (&args.rgb, &args.mask, args.scene, args.image) {
@@ -83,7 +84,15 @@ pub fn run(args: &VizArgs) -> Result<serde_json::Value> {
                 }
                 let crop = crop_files(rgb, mask, size)?;
                 let identity = UnitQuaternion::identity();
-                distribution_figure(&model, &crop.pixels, &identity, &[], args.level, 0, &title)?
+                distribution_figure(
+                    &members,
+                    &crop.pixels,
+                    &identity,
+                    &[],
+                    args.level,
+                    0,
+                    &title,
+                )?
             }
             (_, _, Some(scene_id), Some(im_id)) => {
                 let dataset = info.dataset(args.dataset.as_deref())?;
@@ -119,8 +128,8 @@ pub fn run(args: &VizArgs) -> Result<serde_json::Value> {
                     size,
                 )?;
                 let cameras = read_scene_camera(&scene.camera_path())?;
-                let turn = crop_turn(&model, &crop, &intrinsics_of(&cameras, &scene, im_id)?);
-                distribution_figure(&model, &crop.pixels, &turn, &truth, args.level, 0, &title)?
+                let turn = crop_turn(model, &crop, &intrinsics_of(&cameras, &scene, im_id)?);
+                distribution_figure(&members, &crop.pixels, &turn, &truth, args.level, 0, &title)?
             }
             _ => bail!("--checkpoint needs --rgb and --mask, or --scene and --image"),
         }

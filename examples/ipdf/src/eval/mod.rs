@@ -289,9 +289,10 @@ fn run_dataset(request: &EvalRequest) -> Result<(RunInfo, BopDataset), Error> {
 pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<EvalResult, Error> {
     let grid = request.grid()?;
     let (info, dataset) = run_dataset(request)?;
-    let model = ImplicitPdf::load(&request.checkpoint, default_device())?;
+    let models = ImplicitPdf::load_ensemble(&request.checkpoint, default_device())?;
+    let model = &models[0];
     let examples = request.examples(&dataset, &info, model.config().input_size as usize)?;
-    let translation_model = pose_translation_model(&request.checkpoint, &model)?;
+    let translation_model = pose_translation_model(&request.checkpoint, model)?;
     let passes = if translation_model.is_some() { 2 } else { 1 };
     progress.set_total(passes * examples.instances.len() as u64, 0);
     let refine = request.per_instance && request.depth_hypotheses > 0;
@@ -300,7 +301,7 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
         hypotheses: if refine { request.depth_hypotheses } else { 0 },
         hypothesis_spacing: HYPOTHESIS_SPACING_DEG.to_radians(),
     };
-    let evaluation = evaluate_rotations(&model, &examples, &grid, request.views, picks, progress)?;
+    let evaluation = evaluate_rotations(&models, &examples, &grid, request.views, picks, progress)?;
     let scores = evaluation.scores;
     let (translation, pose, poses) = match &translation_model {
         Some(translation_model) => {

@@ -5,7 +5,7 @@
 //! to the nearest predicted one), averaged over crops.
 use bop_dataset::{Intrinsics, Progress};
 use ipdf_metrics::{Distribution, GridCell, RECALL_THRESHOLD, maad, recall_maad};
-use ipdf_model::rotation::{ArgmaxOptions, ImplicitPdf, Predictor};
+use ipdf_model::rotation::{ArgmaxOptions, ImplicitPdf, Precision, Predictor};
 use ipdf_model::{CellMasses, RefineOptions};
 use nalgebra::UnitQuaternion;
 use so3_grid::Grid;
@@ -44,7 +44,8 @@ pub fn evaluate(
     grid: &RefineOptions,
     progress: &dyn Progress,
 ) -> Result<Scores, Error> {
-    Ok(evaluate_rotations(model, examples, grid, 0, Picks::default(), progress)?.scores)
+    let models = std::slice::from_ref(model);
+    Ok(evaluate_rotations(models, examples, grid, 0, Picks::default(), progress)?.scores)
 }
 
 /// Each crop's scores beside the means: what [`evaluate_rotations`] returns.
@@ -78,12 +79,14 @@ pub struct Picks {
 
 /// [`evaluate`], with each crop's LLH, MAAD and Recall MAAD, and the rotations `picks` asks
 /// for: each crop's most likely rotation ([`Predictor::argmax_from`] on the same distribution),
-/// its rotation hypotheses. Each crop's image term is computed once, averaged over the crop
-/// and `views` test-time views of it ([`Predictor::with_views`]). A model in the line of
-/// sight's frame is scored against the truth turned into it, crop by crop, and its rotations
-/// are turned back into the camera's ([`Examples::frame_turns`]).
+/// its rotation hypotheses. `models` are one model or the members of an ensemble
+/// ([`Predictor::ensemble`], [`ImplicitPdf::load_ensemble`]). Each crop's image term is
+/// computed once, averaged over the crop and `views` test-time views of it
+/// ([`Predictor::with_views`]). A model in the line of sight's frame is scored against the
+/// truth turned into it, crop by crop, and its rotations are turned back into the camera's
+/// ([`Examples::frame_turns`]).
 pub fn evaluate_rotations(
-    model: &ImplicitPdf,
+    models: &[ImplicitPdf],
     examples: &Examples,
     grid: &RefineOptions,
     views: usize,
@@ -94,8 +97,8 @@ pub fn evaluate_rotations(
     // The model's distribution is in its own frame: the truth is scored there (LLH, MAAD and
     // Recall MAAD are the same in any frame), and the rotations picked are turned into the
     // camera's.
-    let turns = examples.frame_turns(model.config().rotation_frame)?;
-    let mut predictor = Predictor::new(model).with_views(views)?;
+    let mut predictor = Predictor::ensemble(models, Precision::Model)?.with_views(views)?;
+    let turns = examples.frame_turns(models[0].config().rotation_frame)?;
     let argmax_options = ArgmaxOptions {
         refine: *grid,
         ..ArgmaxOptions::default()
@@ -173,12 +176,13 @@ pub fn crop_turn(
         .to_camera(&crop.geometry(intrinsics))
 }
 
-/// The Implicit-PDF figure of `model`'s distribution for an 8-bit crop (`[3, S, S]`) on the
-/// `level` grid, its image term averaged over `views` test-time views, with `truth` (camera
-/// frame) drawn over it; `turn` takes the model's frame into the camera's
-/// ([`ipdf_model::rotation::RotationFrame::to_camera`]), so the figure is in the camera's.
+/// The Implicit-PDF figure of the distribution of `models` (one model, or an ensemble's
+/// members) for an 8-bit crop (`[3, S, S]`) on the `level` grid, its image term averaged over
+/// `views` test-time views, with `truth` (camera frame) drawn over it; `turn` takes the
+/// models' frame into the camera's ([`ipdf_model::rotation::RotationFrame::to_camera`]), so the
+/// figure is in the camera's.
 pub fn distribution_figure(
-    model: &ImplicitPdf,
+    models: &[ImplicitPdf],
     crop: &[u8],
     turn: &UnitQuaternion<f64>,
     truth: &[UnitQuaternion<f64>],
@@ -186,11 +190,10 @@ pub fn distribution_figure(
     views: usize,
     title: &str,
 ) -> Result<image::RgbImage, Error> {
-    let size = model.config().input_size as usize;
+    let mut predictor = Predictor::ensemble(models, Precision::Model)?.with_views(views)?;
+    let size = models[0].config().input_size as usize;
     let grid = Grid::new(level).map_err(|e| Error::option("level", e.to_string()))?;
-    let masses = Predictor::new(model)
-        .with_views(views)?
-        .probabilities(&crop_tensor(crop, size), level)?;
+    let masses = predictor.probabilities(&crop_tensor(crop, size), level)?;
     let rotations: Vec<_> = grid.rotations().iter().map(|r| turn * r).collect();
     plot_distribution(crop, size, &rotations, &masses, truth, title)
 }
@@ -269,8 +272,8 @@ mod tests {
         };
         let grid = RefineOptions::to_level(2);
         let scored =
-            evaluate_rotations(&in_line_of_sight, &examples, &grid, 0, picks, &()).unwrap();
-        let by_hand = evaluate_rotations(&in_camera, &turned, &grid, 0, picks, &()).unwrap();
+            evaluate_rotations(&[in_line_of_sight], &examples, &grid, 0, picks, &()).unwrap();
+        let by_hand = evaluate_rotations(&[in_camera], &turned, &grid, 0, picks, &()).unwrap();
         for (a, b) in [
             (&scored.llh, &by_hand.llh),
             (&scored.maad_deg, &by_hand.maad_deg),

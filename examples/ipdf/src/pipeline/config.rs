@@ -80,6 +80,7 @@ impl Preset {
                 blur: 0.0,
                 backbones: vec![],
                 rotation_frame: RotationFrame::Camera,
+                rotation_members: 1,
                 concurrent_models: 2,
             },
             Self::Paper => Plan {
@@ -104,6 +105,7 @@ impl Preset {
                 blur: 0.0,
                 backbones: vec![EncoderKind::Resnet18Stage3, EncoderKind::ConvnextTiny],
                 rotation_frame: RotationFrame::Camera,
+                rotation_members: 1,
                 concurrent_models: 1,
             },
             Self::Gpu => Plan {
@@ -223,6 +225,10 @@ pub struct Plan {
     /// The frame the rotation models learn in; the camera's where a run folder records none.
     #[serde(default)]
     pub rotation_frame: RotationFrame,
+    /// Rotation models per ensemble (`ipdf train --members`); one where a run folder records
+    /// none.
+    #[serde(default = "one", skip_serializing_if = "is_one")]
+    pub rotation_members: usize,
     /// Models trained at once, each on one CPU thread: small models leave a second core
     /// partly idle, so two at a time finish sooner than one on two threads. How, not what: not
     /// recorded.
@@ -232,6 +238,10 @@ pub struct Plan {
 
 fn one() -> usize {
     1
+}
+
+fn is_one(value: &usize) -> bool {
+    *value == 1
 }
 
 fn is_zero(value: &f64) -> bool {
@@ -311,7 +321,7 @@ pub struct PipelineConfig {
 pub const CONFIG_FILE: &str = "pipeline_config.json";
 
 /// The keys of [`PipelineConfig`] set by command-line flags, and the flags.
-const FLAGS: [(&str, &str); 17] = [
+const FLAGS: [(&str, &str); 18] = [
     ("preset", "--preset"),
     ("seed", "--seed"),
     ("mesh", "--mesh"),
@@ -329,6 +339,7 @@ const FLAGS: [(&str, &str); 17] = [
     ("translation_epochs", "--translation-epochs"),
     ("steps_per_epoch", "--steps-per-epoch"),
     ("rotation_frame", "--rotation-frame"),
+    ("rotation_members", "--rotation-members"),
 ];
 
 /// Keys recorded only since a later version, with the value every run before it had: a run

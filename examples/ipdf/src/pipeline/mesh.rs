@@ -31,7 +31,9 @@ use crate::eval::instances::markdown;
 use crate::eval::{DEPTH_HYPOTHESES, EvalRequest, EvalResult, evaluate_run};
 use crate::plots::{plot_training_curves, write_png};
 use crate::progress::bar;
-use crate::training::{TRANSLATION_DIR, Target, is_trained, train_model};
+use crate::training::{
+    TRANSLATION_DIR, Target, TrainRequest, ensemble_requests, is_trained, name_members, train_model,
+};
 
 /// A real BOP split to score the models on.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -252,28 +254,34 @@ fn label_renders(out: &Path, data: &Path, plan: &Plan, seed: u64) -> Result<Labe
         .ok_or_else(|| Error::option("labels", format!("{}: no object", path.display())))
 }
 
-/// Stage 3: the rotation model in `model` and its translation model, side by side.
+/// Stage 3: the rotation model in `model` (each member of its ensemble) and its translation
+/// model, side by side.
 fn train_pose(data: &Path, model: &Path, plan: &Plan, seed: u64) -> Result<(), Error> {
+    let rotation = TrainRequest {
+        out: model.to_path_buf(),
+        ..train_request(plan, data, Target::Rotation, seed)
+    };
+    let translation = TrainRequest {
+        out: model.join(TRANSLATION_DIR),
+        ..train_request(plan, data, Target::Translation, seed)
+    };
     let mut pending = Vec::new();
-    for (target, dir) in [
-        (Target::Rotation, model.to_path_buf()),
-        (Target::Translation, model.join(TRANSLATION_DIR)),
-    ] {
-        if !is_trained(&dir, plan.total_steps(target))? {
-            pending.push((target, dir));
+    for request in ensemble_requests(&rotation, plan.rotation_members)?
+        .into_iter()
+        .chain([translation])
+    {
+        if !is_trained(&request.out, plan.total_steps(request.target))? {
+            pending.push(request);
         }
     }
-    on_threads(&pending, plan.concurrent_models, |(target, dir)| {
-        eprintln!("pipeline: training the {} model", target.name());
-        let request = crate::training::TrainRequest {
-            out: dir.clone(),
-            ..train_request(plan, data, *target, seed)
-        };
-        let progress = bar(plan.total_steps(*target), "steps");
-        train_model(&request, &progress)?;
+    on_threads(&pending, plan.concurrent_models, |request| {
+        eprintln!("pipeline: training the {} model", request.target.name());
+        let progress = bar(plan.total_steps(request.target), "steps");
+        train_model(request, &progress)?;
         progress.finish_and_clear();
         Ok(())
-    })
+    })?;
+    name_members(model, plan.rotation_members)
 }
 
 /// Stage 4: scores on the validation renders (`eval_renders.json`) and on the real split
@@ -369,7 +377,7 @@ fn draw_figures(
     if path.exists() {
         return Ok(());
     }
-    let rotation = ImplicitPdf::load(model, default_device())?;
+    let rotation = ImplicitPdf::load_ensemble(model, default_device())?;
     let title = format!("{object}: its Pseudo model on the first {name} instance");
     let level = plan.eval_level.min(3);
     let dataset = BopDataset::new(dataset);

@@ -40,7 +40,9 @@ use crate::eval::{EvalRequest, EvalResult, eval_file, evaluate_run};
 use crate::plots::{plot_label_errors, plot_training_curves, plot_translation, write_png};
 use crate::progress::bar;
 use crate::run_info::RunInfo;
-use crate::training::{TRANSLATION_DIR, Target, TrainRequest, is_trained, train_model};
+use crate::training::{
+    TRANSLATION_DIR, Target, TrainRequest, ensemble_requests, is_trained, name_members, train_model,
+};
 use crate::training_data::{
     CropSource, ExampleOptions, LabelSource, crop_files, intrinsics_of, load_examples,
     to_unit_floats,
@@ -289,41 +291,55 @@ fn model_runs(out: &Path, plan: &Plan) -> Vec<ModelRun> {
         .collect()
 }
 
-/// Stage 3: trains the models not trained yet, `plan.concurrent_models` at a time.
+/// Stage 3: trains the models not trained yet (each member of a rotation model's ensemble),
+/// `plan.concurrent_models` at a time.
 fn train_models(out: &Path, plan: &Plan, runs: &[ModelRun], seed: u64) -> Result<(), Error> {
+    let data = data_dir(out, Variant::Uniform);
     let mut pending = Vec::new();
     for run in runs {
         for &target in run.targets() {
-            if !is_trained(&run.dir_of(target), plan.total_steps(target))? {
-                pending.push((run, target));
+            let request = TrainRequest {
+                object_name: Some(run.object.name().into()),
+                labels: run.labels,
+                model: ModelConfig {
+                    encoder: run.encoder,
+                    ..train_request(plan, &data, target, seed).model
+                },
+                occlusion: run.occlusion,
+                out: run.dir_of(target),
+                ..train_request(plan, &data, target, seed)
+            };
+            let members = if target == Target::Rotation {
+                plan.rotation_members
+            } else {
+                1
+            };
+            for member in ensemble_requests(&request, members)? {
+                if !is_trained(&member.out, plan.total_steps(target))? {
+                    pending.push((run, member));
+                }
             }
         }
     }
-    let data = data_dir(out, Variant::Uniform);
-    on_threads(&pending, plan.concurrent_models, |&(run, target)| {
+    on_threads(&pending, plan.concurrent_models, |(run, request)| {
         eprintln!(
             "pipeline: training {}'s {} on {} labels{}",
             run.object.name(),
-            target.name(),
+            request.target.name(),
             run.labels.name(),
             if run.occlusion { " with occlusion" } else { "" }
         );
-        let request = TrainRequest {
-            object_name: Some(run.object.name().into()),
-            labels: run.labels,
-            model: ModelConfig {
-                encoder: run.encoder,
-                ..train_request(plan, &data, target, seed).model
-            },
-            occlusion: run.occlusion,
-            out: run.dir_of(target),
-            ..train_request(plan, &data, target, seed)
-        };
-        let progress = bar(plan.total_steps(target), "steps");
-        train_model(&request, &progress)?;
+        let progress = bar(plan.total_steps(request.target), "steps");
+        train_model(request, &progress)?;
         progress.finish_and_clear();
         Ok(())
-    })
+    })?;
+    for run in runs {
+        if run.targets().contains(&Target::Rotation) {
+            name_members(&run.dir_of(Target::Rotation), plan.rotation_members)?;
+        }
+    }
+    Ok(())
 }
 
 /// How the plan trains a model of `target` on the `train` split of the dataset in `data`,
@@ -455,14 +471,14 @@ fn first_validation_figure(
     level: u8,
 ) -> Result<image::RgbImage, Error> {
     let info = RunInfo::read(&run.dir)?;
-    let model = ImplicitPdf::load(&run.dir, default_device())?;
+    let models = ImplicitPdf::load_ensemble(&run.dir, default_device())?;
     let title = format!(
         "{}, trained on {} labels",
         run.object.name(),
         run.labels.name()
     );
     first_instance_figure(
-        &model,
+        &models,
         &BopDataset::new(data),
         "val",
         info.obj_id,
@@ -478,12 +494,12 @@ fn first_validation_figure(
     })
 }
 
-/// The distribution figure of `model` for the first instance of object `obj_id` in `split`
-/// with a visible mask (its image term averaged over `views` test-time views), against its
-/// true poses under the symmetries of the dataset's `models_info.json`; `None` where there is
-/// none.
+/// The distribution figure of `models` (one model, or an ensemble's members) for the first
+/// instance of object `obj_id` in `split` with a visible mask (its image term averaged over
+/// `views` test-time views), against its true poses under the symmetries of the dataset's
+/// `models_info.json`; `None` where there is none.
 fn first_instance_figure(
-    model: &ImplicitPdf,
+    models: &[ImplicitPdf],
     dataset: &BopDataset,
     split: &str,
     obj_id: u32,
@@ -491,8 +507,8 @@ fn first_instance_figure(
     views: usize,
     title: &str,
 ) -> Result<Option<image::RgbImage>, Error> {
-    let models = read_models_info(&dataset.models_info_path())?;
-    let group = models
+    let infos = read_models_info(&dataset.models_info_path())?;
+    let group = infos
         .get(&obj_id)
         .map(|m| m.symmetry.clone())
         .unwrap_or_default();
@@ -504,13 +520,13 @@ fn first_instance_figure(
                 if truth.obj_id != obj_id || !mask.exists() {
                     continue;
                 }
-                let size = model.config().input_size as usize;
+                let size = models[0].config().input_size as usize;
                 let crop = crop_files(&scene.rgb_path(im_id), &mask, size)?;
                 let cameras = read_scene_camera(&scene.camera_path())?;
-                let turn = crop_turn(model, &crop, &intrinsics_of(&cameras, &scene, im_id)?);
+                let turn = crop_turn(&models[0], &crop, &intrinsics_of(&cameras, &scene, im_id)?);
                 let truths = group.expand(&truth.pose.rotation);
                 let figure =
-                    distribution_figure(model, &crop.pixels, &turn, &truths, level, views, title)?;
+                    distribution_figure(models, &crop.pixels, &turn, &truths, level, views, title)?;
                 return Ok(Some(figure));
             }
         }

@@ -27,6 +27,14 @@ pub const SMALL_NETWORK: [&str; 6] = [
     "16,16",
 ];
 
+/// The shape of a float32 `.npy` file and its values in order.
+pub fn read_npy(path: &Path) -> (Vec<u64>, Vec<f32>) {
+    let bytes = std::fs::read(path).unwrap();
+    let npy = npyz::NpyFile::new(&bytes[..]).unwrap();
+    let shape = npy.shape().to_vec();
+    (shape, npy.into_vec::<f32>().unwrap())
+}
+
 /// Runs `ipdf` with `args`.
 pub fn ipdf(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_ipdf"))
