@@ -101,6 +101,8 @@ impl Setup {
             "1",
             "--steps-per-epoch",
             "3",
+            "--rotation-members",
+            "2",
             "--real",
             s(&self.root),
             "--obj-id",
@@ -128,6 +130,16 @@ fn a_mesh_run_is_scored_on_the_real_frames() {
     assert_eq!(report["config"]["rotation_frame"], "line-of-sight");
     let checkpoint = read_json(&out.join("model/checkpoint.json"));
     assert_eq!(checkpoint["model"]["rotation_frame"], "line-of-sight");
+    // ... as an ensemble of two, the second member from the next seed, named beside the first.
+    assert_eq!(report["config"]["rotation_members"], 2);
+    let member = read_json(&out.join("model/member-2/checkpoint.json"));
+    assert_eq!(
+        member["model"]["seed"],
+        checkpoint["model"]["seed"].as_u64().unwrap() + 1
+    );
+    assert_eq!(member["model"]["rotation_frame"], "line-of-sight");
+    let named = read_json(&out.join("model/ensemble.json"));
+    assert_eq!(named["members"], json!(["member-2"]));
     // Every real instance of the object is scored, and only those.
     let real = &report["real"];
     let scored: Vec<(u64, u64)> = real["instances"]
