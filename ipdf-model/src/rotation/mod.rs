@@ -12,7 +12,10 @@
 //!   refinement ([`crate::refine`]), `ln p(R | I)` at any rotation
 //!   ([`Predictor::log_densities`]), a bfloat16 head for speed ([`Precision`]), and the most
 //!   likely rotation by gradient ascent ([`Predictor::argmax`]); its image term optionally
-//!   averaged over test-time views of the crop ([`crop_views`], [`Predictor::with_views`]).
+//!   averaged over test-time views of the crop ([`crop_views`], [`Predictor::with_views`]);
+//!   the same for an ensemble of models, whose `F` is the mean of theirs
+//!   ([`Predictor::ensemble`], stored as a checkpoint whose [`ENSEMBLE_FILE`] names the other
+//!   members: [`ImplicitPdf::load_ensemble`], [`write_ensemble`]).
 //! - [`RotationFrame`]: the camera's frame, or the line of sight's through the crop's centre,
 //!   in which one look of the object is one rotation wherever in the image it was cut.
 //!

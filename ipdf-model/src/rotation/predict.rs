@@ -219,7 +219,7 @@ impl<'m> Predictor<'m> {
         f: impl Fn(usize, &Member, Tensor) -> Tensor,
     ) -> Tensor {
         let mut offset = 0;
-        let values: Vec<Tensor> = self
+        let mut values: Vec<Tensor> = self
             .members
             .iter()
             .enumerate()
@@ -229,6 +229,9 @@ impl<'m> Predictor<'m> {
                 f(k, member, term)
             })
             .collect();
+        if values.len() == 1 {
+            return values.remove(0);
+        }
         let kind = values[0].kind();
         Tensor::stack(&values, 0).mean_dim(0, false, kind)
     }
