@@ -269,7 +269,8 @@ pub const MAX_MEMBERS: usize = 8;
 
 /// The requests of an ensemble of `members` rotation models on the data of `request`: the
 /// first is `request` itself, the `k`-th trains in `member-k` inside its run folder with both
-/// seeds (the weights', and the batches', queries' and augmentation's) raised by `k − 1`.
+/// seeds (the weights', and the batches', queries' and augmentation's) raised by `k − 1`
+/// (wrapping past the largest seed).
 /// Anything but a rotation model, or more than [`MAX_MEMBERS`], is refused.
 pub fn ensemble_requests(
     request: &TrainRequest,
@@ -292,7 +293,7 @@ pub fn ensemble_requests(
             let raise = k as u64 - 1;
             TrainRequest {
                 model: ModelConfig {
-                    seed: request.model.seed + raise,
+                    seed: request.model.seed.wrapping_add(raise),
                     ..request.model.clone()
                 },
                 out: if k == 1 {
@@ -300,7 +301,7 @@ pub fn ensemble_requests(
                 } else {
                     request.out.join(member_name(k))
                 },
-                seed: request.seed + raise,
+                seed: request.seed.wrapping_add(raise),
                 ..request.clone()
             }
         })
