@@ -56,7 +56,7 @@ pub struct PipelineArgs {
     #[arg(long, value_parser = choice::<RotationFrame>())]
     pub rotation_frame: Option<RotationFrame>,
     /// Rotation models per ensemble instead of the preset's one (`ipdf train --members`): each
-    /// costs a rotation training; their densities are multiplied and renormalised.
+    /// costs a rotation training; the ensemble's density is the members' geometric mean.
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..=MAX_MEMBERS as u64))]
     pub rotation_members: Option<u64>,
     /// One object of your own instead of the built-in three (.ply/.obj, its texture image or

@@ -113,8 +113,8 @@ pub struct TrainArgs {
     /// the image's intrinsics). `ipdf pipeline --mesh` trains in the line of sight's.
     #[arg(long, value_parser = choice::<RotationFrame>(), default_value = "camera")]
     pub rotation_frame: RotationFrame,
-    /// Rotation models trained as one ensemble, whose densities are multiplied and
-    /// renormalised wherever the checkpoint is read: the first in --out, the k-th in
+    /// Rotation models trained as one ensemble, whose density is the members' geometric mean
+    /// (renormalised) wherever the checkpoint is read: the first in --out, the k-th in
     /// --out/member-k from seed + k − 1, listed in --out/ensemble.json. Each costs a training.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..=MAX_MEMBERS as u64))]
     pub members: u64,
