@@ -289,6 +289,15 @@ impl Plan {
         }
     }
 
+    /// Members of each model of `target`: the plan's for rotation models, one for translation
+    /// models (only rotation models form ensembles).
+    pub fn members_of(&self, target: Target) -> usize {
+        match target {
+            Target::Translation => 1,
+            _ => self.rotation_members,
+        }
+    }
+
     /// Steps each model of `target` trains for.
     pub fn total_steps(&self, target: Target) -> u64 {
         self.epochs_of(target) * self.steps_per_epoch

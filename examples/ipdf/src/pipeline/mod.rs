@@ -309,12 +309,7 @@ fn train_models(out: &Path, plan: &Plan, runs: &[ModelRun], seed: u64) -> Result
                 out: run.dir_of(target),
                 ..train_request(plan, &data, target, seed)
             };
-            let members = if target == Target::Rotation {
-                plan.rotation_members
-            } else {
-                1
-            };
-            for member in ensemble_requests(&request, members)? {
+            for member in ensemble_requests(&request, plan.members_of(target))? {
                 if !is_trained(&member.out, plan.total_steps(target))? {
                     pending.push((run, member));
                 }
