@@ -177,6 +177,16 @@ fn unknown_names_of_library_values_name_the_flag() {
             "--rotation-frame",
             "world",
         ),
+        (
+            &["pipeline", "--out", "o", "--rotation-members", "9"][..],
+            "--rotation-members",
+            "9",
+        ),
+        (
+            &["pipeline", "--out", "o", "--rotation-members", "two"][..],
+            "--rotation-members",
+            "two",
+        ),
     ] {
         let out = ipdf(args);
         assert_eq!(out.status.code(), Some(2), "{args:?}");
