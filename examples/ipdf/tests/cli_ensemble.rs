@@ -81,6 +81,9 @@ fn an_ensemble_predicts_the_normalised_geometric_mean_of_its_members() {
     let alone = ipdf_json(&["eval", "--checkpoint", s(&first), "--level", "2"]);
     assert_eq!(scores["images"], alone["images"]);
     assert_ne!(scores["llh"], alone["llh"]);
+    // The scores say how many models made them; one model's leave the key out.
+    assert_eq!(scores["members"], 2);
+    assert!(alone.get("members").is_none(), "{alone}");
     let figure = dir.path().join("ensemble.png");
     let drawn = ["--scene", "0", "--image", "0"];
     assert!(ipdf_json(&viz_args(&run, &figure, &drawn))["width"].as_u64() > Some(0));

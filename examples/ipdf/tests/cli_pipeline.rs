@@ -115,13 +115,25 @@ fn a_miniature_pipeline_writes_every_artefact() {
     for (name, value) in ipdf_model::REPRODUCIBLE_CPU_KERNELS {
         assert_eq!(report["cpu_kernels"][name], value, "{name}");
     }
-    // A rerun skips every stage: nothing is retrained.
+    // The stage times are the run folder's, kept in timing.json as each stage ends.
+    assert_eq!(read_json(&out.join("timing.json")), report["timing_s"]);
+    // A rerun skips every stage: nothing is retrained, and what it spends is added to the
+    // earlier invocation's times instead of replacing them.
     let checkpoint = read_json(&out.join("models/can/pseudo/checkpoint.json"));
     ipdf_json(&words);
     assert_eq!(
         read_json(&out.join("models/can/pseudo/checkpoint.json")),
         checkpoint
     );
+    let rerun = read_json(&out.join("report.json"));
+    assert_eq!(read_json(&out.join("timing.json")), rerun["timing_s"]);
+    for stage in ["synth", "label", "train", "eval", "figures"] {
+        let (first, total) = (&report["timing_s"][stage], &rerun["timing_s"][stage]);
+        assert!(
+            total.as_f64() >= first.as_f64(),
+            "{stage}: {first} then {total}"
+        );
+    }
 
     // The single commands on the run's artefacts.
     let run = out.join("models/box/pseudo");

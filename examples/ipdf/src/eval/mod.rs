@@ -18,6 +18,7 @@ use nalgebra::Isometry3;
 use serde::{Deserialize, Serialize};
 
 use crate::Error;
+use crate::pipeline::config::{is_one, one};
 use crate::run_info::RunInfo;
 use crate::training_data::{CropSource, ExampleOptions, Examples, LabelSource, load_examples};
 use instances::{Accuracy, InstanceScore, PoseParts, RefinedParts, score_instances};
@@ -198,6 +199,10 @@ pub struct EvalResult {
     /// Test-time views averaged per crop beside the crop itself ([`EvalRequest::views`]).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub views: usize,
+    /// Rotation models whose scores were averaged: the checkpoint's ensemble
+    /// ([`ImplicitPdf::load_ensemble`]; 1: one model, and then not written).
+    #[serde(default = "one", skip_serializing_if = "is_one")]
+    pub members: usize,
     /// The most network queries one crop took.
     pub queries_per_image: usize,
     /// Crops scored.
@@ -410,6 +415,7 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
         }
         .into(),
         views: request.views,
+        members: models.len(),
         queries_per_image: scores.queries_per_image,
         images: scores.images,
         llh: scores.llh,

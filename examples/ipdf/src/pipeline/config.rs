@@ -236,11 +236,13 @@ pub struct Plan {
     pub concurrent_models: usize,
 }
 
-fn one() -> usize {
+/// Serde's default of a count that was 1 before the file recorded it.
+pub(crate) fn one() -> usize {
     1
 }
 
-fn is_one(value: &usize) -> bool {
+/// Serde's test for leaving out such a count when it is 1.
+pub(crate) fn is_one(value: &usize) -> bool {
     *value == 1
 }
 

@@ -152,7 +152,7 @@ pub fn run_mesh_pipeline(
     check_and_record(out, &config)?;
     let (data, model) = (out.join(DATA), out.join(MODEL));
     let real = request.real.as_ref();
-    let mut stages = StageTimes::default();
+    let mut stages = StageTimes::of(out)?;
     stages.run("synth", || synthesize_renders(&data, plan, request, seed))?;
     if let Some(real) = real {
         adopt_symmetries(&data, real)?;
@@ -171,7 +171,7 @@ pub fn run_mesh_pipeline(
         labels,
         renders,
         real: real_scores,
-        timing_s: stages.0,
+        timing_s: stages.seconds,
         config,
     };
     write_report(out, &report, &report.to_markdown(), report.timing_s.clone())
@@ -397,7 +397,7 @@ impl MeshReport {
         let p = &c.plan;
         let mut out = format!(
             "# {}: a pose model from its mesh\n\n{} preset, seed {}: {} training and {} \
-             validation renders of `{}` (randomised: {}; {}), {} on {}-pixel crops, {} \
+             validation renders of `{}` (randomised: {}; {}), {}{} on {}-pixel crops, {} \
              epochs of {} steps of {} (translation {} epochs), occlusion{}.\n\n",
             self.object,
             p.preset.name(),
@@ -413,6 +413,11 @@ impl MeshReport {
             p.sensor
                 .map_or("clean depth".to_string(), |s| format!("{} depth", s.name())),
             p.encoder.name(),
+            if p.rotation_members > 1 {
+                format!(" (rotation: an ensemble of {})", p.rotation_members)
+            } else {
+                String::new()
+            },
             p.input_size,
             p.epochs,
             p.steps_per_epoch,

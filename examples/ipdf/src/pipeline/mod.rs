@@ -6,7 +6,7 @@
 //! calls the libraries with typed options, and is skipped when its outputs exist. The run's
 //! settings are recorded in `pipeline_config.json` when it starts, and a rerun into the same
 //! folder with other settings is refused.
-mod config;
+pub(crate) mod config;
 mod mesh;
 mod report;
 mod workers;
@@ -104,7 +104,7 @@ impl ModelRun {
 /// Runs (or resumes) the pipeline of `plan` into `out`.
 pub fn run_pipeline(out: &Path, plan: &Plan, seed: u64) -> Result<PipelineSummary, Error> {
     config::check_and_record(out, &plan.config(seed))?;
-    let mut stages = StageTimes::default();
+    let mut stages = StageTimes::of(out)?;
     stages.run("synth", || synthesize_datasets(out, plan, seed))?;
     let labels = stages.run("label", || label_datasets(out, plan, seed))?;
     let runs = model_runs(out, plan);
@@ -112,22 +112,42 @@ pub fn run_pipeline(out: &Path, plan: &Plan, seed: u64) -> Result<PipelineSummar
     let scores = stages.run("eval", || evaluate_models(plan, &runs))?;
     let figures = stages.run("figures", || draw_figures(out, plan, &runs))?;
 
-    let report = report_of(plan, &runs, &scores, labels, stages.0, seed);
+    let report = report_of(plan, &runs, &scores, labels, stages.seconds, seed);
     let text = report.to_markdown(&figures);
     write_report(out, &report, &text, report.timing_s.clone())
 }
 
-/// Seconds per stage of a pipeline invocation.
-#[derive(Debug, Default)]
-struct StageTimes(BTreeMap<String, f64>);
+/// The run folder's seconds per stage, summed over the invocations that ran it: a resumed
+/// run adds what it spends to what the earlier ones spent, so `timing_s` is the run's cost
+/// however often it was stopped (a stage stopped halfway counts from its next invocation).
+pub const TIMING_FILE: &str = "timing.json";
+
+/// Seconds per stage of a run folder ([`TIMING_FILE`]).
+#[derive(Debug)]
+struct StageTimes {
+    path: PathBuf,
+    seconds: BTreeMap<String, f64>,
+}
 
 impl StageTimes {
-    /// Runs the stage `name`, recording and printing how long it took.
+    /// The stage times `out` holds so far (none in a new folder).
+    fn of(out: &Path) -> Result<Self, Error> {
+        let path = out.join(TIMING_FILE);
+        let seconds = if path.exists() {
+            read_json_as(&path)?
+        } else {
+            BTreeMap::new()
+        };
+        Ok(Self { path, seconds })
+    }
+
+    /// Runs the stage `name`, adding how long it took to the folder's record, and printing it.
     fn run<T>(&mut self, name: &str, stage: impl FnOnce() -> Result<T, Error>) -> Result<T, Error> {
         let started = Instant::now();
         let result = stage()?;
         let seconds = started.elapsed().as_secs_f64();
-        self.0.insert(name.to_string(), seconds);
+        *self.seconds.entry(name.to_string()).or_default() += seconds;
+        write_json(&self.path, &self.seconds)?;
         eprintln!("pipeline: {name} done in {seconds:.0} s");
         Ok(result)
     }
