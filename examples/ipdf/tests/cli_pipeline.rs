@@ -190,6 +190,20 @@ fn a_miniature_pipeline_writes_every_artefact() {
     let figure = dir.path().join("viz.png");
     ipdf_json(&viz_args(&run, &figure, &["--scene", "1", "--image", "0"]));
     assert_eq!(png_size(&figure), (1180, 480));
+    // With test-time views the distribution drawn is another one (the crop panel is the same).
+    let viewed = dir.path().join("viz_views.png");
+    let drawn = ["--scene", "1", "--image", "0", "--views", "8"];
+    ipdf_json(&viz_args(&run, &viewed, &drawn));
+    let pixels = |path: &Path| image::open(path).unwrap().to_rgb8().into_raw();
+    assert_ne!(pixels(&figure), pixels(&viewed));
+    assert_fails(
+        &viz_args(
+            &run,
+            &viewed,
+            &["--scene", "1", "--image", "0", "--views", "9"],
+        ),
+        "--views",
+    );
     ipdf_json(&["viz", "--train-log", s(&run), "--out", s(&figure)]);
     assert_eq!(png_size(&figure), (1200, 480));
 

@@ -48,6 +48,11 @@ pub struct VizArgs {
     /// Grid level of the distribution drawn (3: 36,864 rotations).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(0..=4))]
     pub level: u8,
+    /// Draw the distribution averaged over the crop and this many test-time views of it, as
+    /// `ipdf predict --views` (at most 8; 0: the crop alone; 8 is what the mesh pipeline's
+    /// figures draw).
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=8))]
+    pub views: u8,
     /// The PNG to write.
     #[arg(long)]
     pub out: PathBuf,
@@ -90,7 +95,7 @@ pub fn run(args: &VizArgs) -> Result<serde_json::Value> {
                     &identity,
                     &[],
                     args.level,
-                    0,
+                    args.views.into(),
                     &title,
                 )?
             }
@@ -129,7 +134,15 @@ pub fn run(args: &VizArgs) -> Result<serde_json::Value> {
                 )?;
                 let cameras = read_scene_camera(&scene.camera_path())?;
                 let turn = crop_turn(model, &crop, &intrinsics_of(&cameras, &scene, im_id)?);
-                distribution_figure(&members, &crop.pixels, &turn, &truth, args.level, 0, &title)?
+                distribution_figure(
+                    &members,
+                    &crop.pixels,
+                    &turn,
+                    &truth,
+                    args.level,
+                    args.views.into(),
+                    &title,
+                )?
             }
             _ => bail!("--checkpoint needs --rgb and --mask, or --scene and --image"),
         }
