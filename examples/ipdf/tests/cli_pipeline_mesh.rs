@@ -140,6 +140,17 @@ fn a_mesh_run_is_scored_on_the_real_frames() {
     assert_eq!(member["model"]["rotation_frame"], "line-of-sight");
     let named = read_json(&out.join("model/ensemble.json"));
     assert_eq!(named["members"], json!(["member-2"]));
+    // The real frames' scores say they are the two models', in JSON and in the table's heading.
+    assert_eq!(report["real"]["members"], 2);
+    let table = std::fs::read_to_string(out.join("eval_real.md")).unwrap();
+    assert!(
+        table
+            .lines()
+            .next()
+            .unwrap()
+            .ends_with("an ensemble of 2 rotation models"),
+        "{table}"
+    );
     // Every real instance of the object is scored, and only those.
     let real = &report["real"];
     let scored: Vec<(u64, u64)> = real["instances"]

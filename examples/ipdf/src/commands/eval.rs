@@ -112,14 +112,11 @@ pub fn run(args: &EvalArgs) -> Result<serde_json::Value> {
             eprintln!("ipdf eval: {note}");
         }
         if let (Some(path), Some(accuracy)) = (&args.out, &result.accuracy) {
-            let mut what = format!(
+            let what = format!(
                 "{} ({}), split {}, level {}",
                 result.object, result.obj_id, result.split, result.level
             );
-            if result.members > 1 {
-                what += &format!(", an ensemble of {} rotation models", result.members);
-            }
-            let table = markdown(&what, &result.instances, accuracy);
+            let table = markdown(&result.heading(&what), &result.instances, accuracy);
             write_atomically(&path.with_extension("md"), |out| {
                 std::io::Write::write_all(out, table.as_bytes())
             })?;

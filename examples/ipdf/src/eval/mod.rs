@@ -460,6 +460,18 @@ pub fn eval_file(run_dir: &Path, level: u8) -> PathBuf {
     run_dir.join(format!("eval_level{level}.json"))
 }
 
+impl EvalResult {
+    /// `what` scored, as the heading of the per-instance table: naming the ensemble when the
+    /// scores average several rotation models.
+    pub fn heading(&self, what: &str) -> String {
+        if self.members > 1 {
+            format!("{what}, an ensemble of {} rotation models", self.members)
+        } else {
+            what.to_string()
+        }
+    }
+}
+
 fn is_zero(count: &usize) -> bool {
     *count == 0
 }

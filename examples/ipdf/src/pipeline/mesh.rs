@@ -320,7 +320,7 @@ fn score(
             real.dataset.display(),
             real.split
         );
-        let table = markdown(&what, &result.instances, accuracy);
+        let table = markdown(&result.heading(&what), &result.instances, accuracy);
         write_atomically(&path.with_extension("md"), |f| {
             f.write_all(table.as_bytes())
         })?;
