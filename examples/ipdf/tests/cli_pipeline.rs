@@ -134,6 +134,12 @@ fn a_miniature_pipeline_writes_every_artefact() {
             "{stage}: {first} then {total}"
         );
     }
+    // A damaged record is refused, naming it; the folder is left for the user to mend.
+    let timing = out.join("timing.json");
+    let kept = std::fs::read(&timing).unwrap();
+    std::fs::write(&timing, "{\"synth\": ").unwrap();
+    assert_fails(&words, "timing.json");
+    std::fs::write(&timing, kept).unwrap();
 
     // The single commands on the run's artefacts.
     let run = out.join("models/box/pseudo");
