@@ -21,6 +21,7 @@ fn images(count: i64, size: i64, seed: i64) -> Tensor {
 fn every_encoder_gives_one_score_per_query() {
     for (encoder, size, features) in [
         (EncoderKind::SmallCnn, 32, 256),
+        (EncoderKind::SmallCnnDeep, 64, 256),
         (EncoderKind::Resnet18, 64, 512),
         (EncoderKind::Resnet18Stage3, 64, 256 * 4 * 4),
         (EncoderKind::ConvnextTiny, 64, 768),
@@ -44,6 +45,39 @@ fn every_encoder_gives_one_score_per_query() {
         assert_eq!(scores.size(), [2, 72], "{encoder}");
         assert!(f64::try_from(scores.isfinite().all().to_kind(Kind::Double)).unwrap() == 1.0);
     }
+}
+
+#[test]
+fn the_deep_small_cnn_adds_a_stride_one_convolution_to_its_last_two_stages() {
+    let convolutions = |encoder| {
+        let config = ModelConfig {
+            encoder,
+            ..ModelConfig::small(64)
+        };
+        let model = ImplicitPdf::new(config, Device::Cpu).unwrap();
+        let mut shapes: Vec<(String, Vec<i64>)> = model
+            .var_store()
+            .variables()
+            .into_iter()
+            .filter(|(name, _)| name.starts_with("encoder.conv") && name.ends_with(".weight"))
+            .map(|(name, tensor)| (name, tensor.size()))
+            .collect();
+        shapes.sort();
+        shapes
+    };
+    let plain = convolutions(EncoderKind::SmallCnn);
+    let deep = convolutions(EncoderKind::SmallCnnDeep);
+    assert_eq!(plain.len(), 4, "{plain:?}");
+    // The plain net's four, and a 3×3 one keeping the width of the third and fourth stages.
+    let added: Vec<_> = deep.iter().filter(|c| !plain.contains(c)).collect();
+    assert_eq!(deep.len(), 6, "{deep:?}");
+    assert_eq!(
+        added,
+        [
+            &("encoder.conv3b.weight".to_string(), vec![128, 128, 3, 3]),
+            &("encoder.conv4b.weight".to_string(), vec![256, 256, 3, 3]),
+        ]
+    );
 }
 
 #[test]

@@ -221,6 +221,8 @@ fn a_mesh_run_is_scored_on_the_real_frames() {
     assert_refused(&leaning, "placement (--placement)");
     let camera_frame = setup.words(&setup.camera, &["--rotation-frame", "camera"]);
     assert_refused(&camera_frame, "rotation_frame (--rotation-frame)");
+    let plain = setup.words(&setup.camera, &["--encoder", "small-cnn"]);
+    assert_refused(&plain, "encoder (--encoder)");
 }
 
 #[test]
@@ -253,6 +255,44 @@ fn the_gpu_preset_runs_the_paper_networks_at_the_size_measured_on_a_gpu() {
     for (key, value) in expected.as_object().unwrap() {
         assert_eq!(&config[key], value, "{key}");
     }
+}
+
+#[test]
+fn the_quick_preset_trains_the_deep_small_cnn_and_the_encoder_flag_overrides_it() {
+    let setup = Setup::new();
+    // A run records its settings before its first stage: a file in the way of the renders
+    // stops it right after.
+    std::fs::create_dir_all(&setup.out).unwrap();
+    std::fs::write(setup.out.join("data"), "in the way").unwrap();
+    let words = [
+        "pipeline",
+        "--mesh",
+        s(&setup.mesh),
+        "--camera",
+        s(&setup.camera),
+        "--out",
+        s(&setup.out),
+    ];
+    let config_of = |extra: &[&str]| {
+        std::fs::remove_file(setup.out.join("pipeline_config.json")).ok();
+        assert!(!ipdf(&[&words[..], extra].concat()).status.success());
+        read_json(&setup.out.join("pipeline_config.json"))
+    };
+    // docs/results.md, "A deeper small CNN": 64-pixel crops, 128 rotation epochs.
+    let preset = config_of(&[]);
+    assert_eq!(preset["encoder"], "small-cnn-deep");
+    assert_eq!(preset["input_size"], 64);
+    assert_eq!(preset["epochs"], 128);
+    let plain = config_of(&["--encoder", "small-cnn"]);
+    assert_eq!(plain["encoder"], "small-cnn");
+    assert_eq!(plain["epochs"], 128);
+    let refused = ipdf(&[&words[..], &["--encoder", "small-cnn-wide"]].concat());
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success());
+    assert!(
+        stderr.contains("small-cnn-wide: expected one of") && stderr.contains("small-cnn-deep"),
+        "{stderr}"
+    );
 }
 
 #[test]

@@ -27,24 +27,31 @@ pub enum EncoderKind {
     /// Four stride-2 3×3 convolutions (32–256 channels) and global pooling: 256-d; for quick
     /// CPU runs.
     SmallCnn,
+    /// The small CNN with a stride-1 3×3 convolution added to each of its last two stages (six
+    /// in all): 256-d, its last features see the whole of a 64-pixel crop; the quick mesh
+    /// preset's.
+    SmallCnnDeep,
 }
 
 impl EncoderKind {
     /// Every encoder, in the order of the command line's list.
-    pub const ALL: [Self; 4] = [
+    pub const ALL: [Self; 5] = [
         Self::Resnet18,
         Self::Resnet18Stage3,
         Self::ConvnextTiny,
         Self::SmallCnn,
+        Self::SmallCnnDeep,
     ];
 
-    /// The command line's name: `resnet18`, `resnet18-2`, `convnext-tiny`, `small-cnn`.
+    /// The command line's name: `resnet18`, `resnet18-2`, `convnext-tiny`, `small-cnn`,
+    /// `small-cnn-deep`.
     pub const fn name(self) -> &'static str {
         match self {
             Self::Resnet18 => "resnet18",
             Self::Resnet18Stage3 => "resnet18-2",
             Self::ConvnextTiny => "convnext-tiny",
             Self::SmallCnn => "small-cnn",
+            Self::SmallCnnDeep => "small-cnn-deep",
         }
     }
 
@@ -76,7 +83,8 @@ impl Encoder {
                 Self::ResNet(ResNet18::new(path, ResNetCut::Stage3, init))
             }
             EncoderKind::ConvnextTiny => Self::ConvNext(ConvNextTiny::new(path, init)),
-            EncoderKind::SmallCnn => Self::Small(SmallCnn::new(path, init)),
+            EncoderKind::SmallCnn => Self::Small(SmallCnn::new(path, false, init)),
+            EncoderKind::SmallCnnDeep => Self::Small(SmallCnn::new(path, true, init)),
         }
     }
 

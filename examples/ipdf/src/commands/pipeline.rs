@@ -7,10 +7,12 @@ use bop_dataset::{BopDataset, camera_from_json, read_json};
 use depth_render::SensorPreset;
 use ipdf::pipeline::{MeshRequest, Plan, Preset, RealSplit, run_mesh_pipeline, run_pipeline};
 use ipdf::training::MAX_MEMBERS;
+use ipdf_model::EncoderKind;
 use ipdf_model::rotation::RotationFrame;
 use synth_data::{Placement, Randomization};
 
 use super::choice::choice;
+use super::train::parse_encoder;
 use super::{check_distance, load_mesh};
 
 /// Arguments of `ipdf pipeline`.
@@ -47,6 +49,10 @@ pub struct PipelineArgs {
     /// Override the preset's epochs of the translation models.
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     pub translation_epochs: Option<u64>,
+    /// Override the preset's image encoder, of the rotation and the translation models
+    /// (`ipdf train --encoder`).
+    #[arg(long, value_parser = parse_encoder)]
+    pub encoder: Option<EncoderKind>,
     /// Override the preset's steps per epoch.
     #[arg(long)]
     pub steps_per_epoch: Option<u64>,
@@ -156,6 +162,7 @@ fn plan(args: &PipelineArgs, preset: Plan) -> Plan {
             .or(args.epochs)
             .unwrap_or(preset.translation_epochs),
         steps_per_epoch: args.steps_per_epoch.unwrap_or(preset.steps_per_epoch),
+        encoder: args.encoder.unwrap_or(preset.encoder),
         ..preset
     }
 }

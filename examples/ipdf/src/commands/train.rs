@@ -57,7 +57,7 @@ pub struct TrainArgs {
     /// The object, by name (`dataset_info.json` of `ipdf synth`).
     #[arg(long, conflicts_with = "obj_id")]
     pub object: Option<String>,
-    /// Image encoder: resnet18, resnet18-2, convnext-tiny, small-cnn.
+    /// Image encoder: resnet18, resnet18-2, convnext-tiny, small-cnn, small-cnn-deep.
     #[arg(long, default_value = "resnet18", value_parser = parse_encoder)]
     pub encoder: EncoderKind,
     /// Side of the square input crop (pixels).
