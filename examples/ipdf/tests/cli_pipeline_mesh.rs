@@ -111,6 +111,25 @@ impl Setup {
         words.extend(extra);
         words
     }
+
+    /// The `pipeline_config.json` a mesh run with `extra` records. A run records its settings
+    /// before its first stage: a file in the way of the renders stops it right after.
+    fn recorded_config(&self, extra: &[&str]) -> Value {
+        std::fs::create_dir_all(&self.out).unwrap();
+        std::fs::write(self.out.join("data"), "in the way").unwrap();
+        std::fs::remove_file(self.out.join("pipeline_config.json")).ok();
+        let words = [
+            "pipeline",
+            "--mesh",
+            s(&self.mesh),
+            "--camera",
+            s(&self.camera),
+            "--out",
+            s(&self.out),
+        ];
+        assert!(!ipdf(&[&words[..], extra].concat()).status.success());
+        read_json(&self.out.join("pipeline_config.json"))
+    }
 }
 
 #[test]
@@ -227,24 +246,7 @@ fn a_mesh_run_is_scored_on_the_real_frames() {
 
 #[test]
 fn the_gpu_preset_runs_the_paper_networks_at_the_size_measured_on_a_gpu() {
-    let setup = Setup::new();
-    // A run records its settings before its first stage: a file in the way of the renders
-    // stops it right after.
-    std::fs::create_dir_all(&setup.out).unwrap();
-    std::fs::write(setup.out.join("data"), "in the way").unwrap();
-    let words = [
-        "pipeline",
-        "--mesh",
-        s(&setup.mesh),
-        "--camera",
-        s(&setup.camera),
-        "--out",
-        s(&setup.out),
-        "--preset",
-        "gpu",
-    ];
-    assert!(!ipdf(&words).status.success());
-    let config = read_json(&setup.out.join("pipeline_config.json"));
+    let config = Setup::new().recorded_config(&["--preset", "gpu"]);
     // docs/results.md, "One mesh on a GPU": ResNet-18 on 224-pixel crops, a 4 × 256 head,
     // level-2 queries at 1e-4; 3,000 renders, 12 rotation and 4 translation epochs of 200 × 64.
     let expected = json!({"preset": "gpu", "encoder": "resnet18", "input_size": 224,
@@ -260,33 +262,28 @@ fn the_gpu_preset_runs_the_paper_networks_at_the_size_measured_on_a_gpu() {
 #[test]
 fn the_quick_preset_trains_the_deep_small_cnn_and_the_encoder_flag_overrides_it() {
     let setup = Setup::new();
-    // A run records its settings before its first stage: a file in the way of the renders
-    // stops it right after.
-    std::fs::create_dir_all(&setup.out).unwrap();
-    std::fs::write(setup.out.join("data"), "in the way").unwrap();
+    // docs/results.md, "A deeper small CNN": 64-pixel crops, 128 rotation epochs.
+    let preset = setup.recorded_config(&[]);
+    assert_eq!(preset["encoder"], "small-cnn-deep");
+    assert_eq!(preset["input_size"], 64);
+    assert_eq!(preset["epochs"], 128);
+    let plain = setup.recorded_config(&["--encoder", "small-cnn"]);
+    assert_eq!(plain["encoder"], "small-cnn");
+    assert_eq!(plain["epochs"], 128);
     let words = [
         "pipeline",
         "--mesh",
         s(&setup.mesh),
         "--camera",
         s(&setup.camera),
-        "--out",
-        s(&setup.out),
     ];
-    let config_of = |extra: &[&str]| {
-        std::fs::remove_file(setup.out.join("pipeline_config.json")).ok();
-        assert!(!ipdf(&[&words[..], extra].concat()).status.success());
-        read_json(&setup.out.join("pipeline_config.json"))
-    };
-    // docs/results.md, "A deeper small CNN": 64-pixel crops, 128 rotation epochs.
-    let preset = config_of(&[]);
-    assert_eq!(preset["encoder"], "small-cnn-deep");
-    assert_eq!(preset["input_size"], 64);
-    assert_eq!(preset["epochs"], 128);
-    let plain = config_of(&["--encoder", "small-cnn"]);
-    assert_eq!(plain["encoder"], "small-cnn");
-    assert_eq!(plain["epochs"], 128);
-    let refused = ipdf(&[&words[..], &["--encoder", "small-cnn-wide"]].concat());
+    let refused = ipdf(
+        &[
+            &words[..],
+            &["--out", s(&setup.out), "--encoder", "small-cnn-wide"],
+        ]
+        .concat(),
+    );
     let stderr = String::from_utf8_lossy(&refused.stderr);
     assert!(!refused.status.success());
     assert!(
