@@ -43,7 +43,9 @@ impl Preset {
     /// What the preset is for, in a line.
     pub fn description(self) -> &'static str {
         match self {
-            Self::Quick => "minutes on a CPU: a small CNN on 48-pixel crops (64 with --mesh)",
+            Self::Quick => {
+                "minutes on a CPU: a small CNN on 48-pixel crops (with --mesh a deeper one on 64)"
+            }
             Self::Paper => {
                 "the paper's scale, for a GPU: ResNet-18 on 224-pixel crops, 20,000 frames \
                  per variant, 50 epochs of 200 x 64"
