@@ -83,8 +83,9 @@ impl Setup {
         }
     }
 
-    /// The words of a miniature run with the camera file `camera`, then `extra`.
-    fn words<'a>(&'a self, camera: &'a Path, extra: &[&'a str]) -> Vec<&'a str> {
+    /// `ipdf pipeline --mesh` of the fixture's mustard bottle with the camera file `camera`
+    /// into the run folder, then `extra`.
+    fn command<'a>(&'a self, camera: &'a Path, extra: &[&'a str]) -> Vec<&'a str> {
         let mut words = vec![
             "pipeline",
             "--mesh",
@@ -93,21 +94,32 @@ impl Setup {
             s(camera),
             "--out",
             s(&self.out),
-            "--frames",
-            "24",
-            "--val-frames",
-            "4",
-            "--epochs",
-            "1",
-            "--steps-per-epoch",
-            "3",
-            "--rotation-members",
-            "2",
-            "--real",
-            s(&self.root),
-            "--obj-id",
-            "5",
         ];
+        words.extend(extra);
+        words
+    }
+
+    /// The words of a miniature run with the camera file `camera`, then `extra`.
+    fn words<'a>(&'a self, camera: &'a Path, extra: &[&'a str]) -> Vec<&'a str> {
+        let mut words = self.command(
+            camera,
+            &[
+                "--frames",
+                "24",
+                "--val-frames",
+                "4",
+                "--epochs",
+                "1",
+                "--steps-per-epoch",
+                "3",
+                "--rotation-members",
+                "2",
+                "--real",
+                s(&self.root),
+                "--obj-id",
+                "5",
+            ],
+        );
         words.extend(extra);
         words
     }
@@ -118,16 +130,7 @@ impl Setup {
         std::fs::create_dir_all(&self.out).unwrap();
         std::fs::write(self.out.join("data"), "in the way").unwrap();
         std::fs::remove_file(self.out.join("pipeline_config.json")).ok();
-        let words = [
-            "pipeline",
-            "--mesh",
-            s(&self.mesh),
-            "--camera",
-            s(&self.camera),
-            "--out",
-            s(&self.out),
-        ];
-        assert!(!ipdf(&[&words[..], extra].concat()).status.success());
+        assert!(!ipdf(&self.command(&self.camera, extra)).status.success());
         read_json(&self.out.join("pipeline_config.json"))
     }
 }
@@ -270,20 +273,7 @@ fn the_quick_preset_trains_the_deep_small_cnn_and_the_encoder_flag_overrides_it(
     let plain = setup.recorded_config(&["--encoder", "small-cnn"]);
     assert_eq!(plain["encoder"], "small-cnn");
     assert_eq!(plain["epochs"], 128);
-    let words = [
-        "pipeline",
-        "--mesh",
-        s(&setup.mesh),
-        "--camera",
-        s(&setup.camera),
-    ];
-    let refused = ipdf(
-        &[
-            &words[..],
-            &["--out", s(&setup.out), "--encoder", "small-cnn-wide"],
-        ]
-        .concat(),
-    );
+    let refused = ipdf(&setup.command(&setup.camera, &["--encoder", "small-cnn-wide"]));
     let stderr = String::from_utf8_lossy(&refused.stderr);
     assert!(!refused.status.success());
     assert!(
