@@ -64,13 +64,15 @@ under = lambda add, r: "—" if add is None else "yes" if add < 0.1 * r["diamete
 one = lambda v, digits=1: "—" if v is None else f"{v:.{digits}f}"
 for r in rows:
     lines.append(f"| {r['scene_id']} | {r['im_id']} | {r['obj_id']} | {visible(r)} | {r['rotation_error_deg']:.1f} | {r['vsd']:.2f} | {r['llh']:.2f} | {r['translation_error_mm']:.1f} | {r['add_mm']:.1f} ({r['add_metric']}) | {under(r['add_mm'], r)} | "
-                 f"{r['fitted_translation_error_mm']:.1f} | {r['fitted_add_mm']:.1f} | {under(r['fitted_add_mm'], r)} | "
+                 f"{one(r.get('fitted_translation_error_mm'))} | {one(r.get('fitted_add_mm'))} | {under(r.get('fitted_add_mm'), r)} | "
                  f"{one(r.get('refined_rotation_error_deg'))} | {one(r.get('refined_vsd'), 2)} | {one(r.get('refined_translation_error_mm'))} | "
                  f"{one(r.get('refined_add_mm'))} | {under(r.get('refined_add_mm'), r)} |")
 n = len(rows)
 errors = sorted(r["rotation_error_deg"] for r in rows)
 translations = sorted(r["translation_error_mm"] for r in rows)
-fitted = sorted(r["fitted_translation_error_mm"] for r in rows)
+# An instance without a fitted translation (no depth, or too few readings in its mask) is left
+# out of the fitted medians and counts as wrong in their ADD(-S).
+fitted = sorted(r["fitted_translation_error_mm"] for r in rows if r.get("fitted_translation_error_mm") is not None)
 # An instance without a refined pose (its depth could not be registered) counts as wrong.
 refined_true = lambda r: (r.get("refined_rotation_error_deg") is not None and r["refined_rotation_error_deg"] < 15) or (
     r.get("refined_vsd") is not None and r["refined_vsd"] < 0.3)
@@ -88,9 +90,11 @@ summary = {
     "add_accuracy": sum(r["add_mm"] < 0.1 * r["diameter_mm"] for r in rows) / n,
     "translation_over_50mm": sum(t > 50 for t in translations),
     # The most likely pose's translation fitted to the frame's depth in the visible mask.
-    "median_fitted_translation_error_mm": fitted[n // 2],
+    "fitted_instances": len(fitted),
+    "median_fitted_translation_error_mm": fitted[len(fitted) // 2] if fitted else None,
     "fitted_translation_over_50mm": sum(t > 50 for t in fitted),
-    "fitted_add_accuracy": sum(r["fitted_add_mm"] < 0.1 * r["diameter_mm"] for r in rows) / n,
+    "fitted_add_accuracy": sum(r.get("fitted_add_mm") is not None and r["fitted_add_mm"] < 0.1 * r["diameter_mm"]
+                               for r in rows) / n,
     # The pose refined with the depth from the rotation model's hypotheses (`ipdf eval
     # --depth-hypotheses`).
     "refined_acc_15_or_vsd": sum(map(refined_true, rows)) / n,
@@ -105,7 +109,7 @@ lines.append(f"{n} instances: Acc@15° {summary['acc_15']:.0%}, Acc@30° {summar
              f"{summary['median_rotation_error_deg']:.1f}°, truth denser than uniform for {summary['above_uniform']:.0%}, "
              f"median translation error {summary['median_translation_error_mm']:.1f} mm, ADD(-S) under 10% of the diameter "
              f"{summary['add_accuracy']:.0%}; fitted to depth: median translation error "
-             f"{summary['median_fitted_translation_error_mm']:.1f} mm, {summary['fitted_translation_over_50mm']} over 50 mm "
+             f"{one(summary['median_fitted_translation_error_mm'])} mm ({summary['fitted_instances']} fitted), {summary['fitted_translation_over_50mm']} over 50 mm "
              f"(the model's: {summary['translation_over_50mm']}), ADD(-S) under 10% of the diameter {summary['fitted_add_accuracy']:.0%}; "
              f"refined with depth from the rotation model's hypotheses: a true pose {summary['refined_acc_15_or_vsd']:.0%}, "
              f"median translation error {one(summary['median_refined_translation_error_mm'])} mm, ADD(-S) under 10% of the diameter "
@@ -120,14 +124,14 @@ for i in ids:
                         renders_maad_deg=report["renders"]["maad_deg"],
                         renders_acc_15=report["renders"]["accuracy"]["acc_15"],
                         minutes=sum(report["timing_s"].values()) / 60,
-                        **{k: accuracy[k] for k in ("instances", "acc_15", "median_rotation_error_deg",
-                                                    "median_translation_error_mm",
-                                                    "median_fitted_translation_error_mm")}))
+                        **{k: accuracy.get(k) for k in ("instances", "acc_15", "median_rotation_error_deg",
+                                                        "median_translation_error_mm",
+                                                        "median_fitted_translation_error_mm")}))
 lines += ["", "| obj | validation renders: LLH | MAAD (°) | Acc@15° | real instances | Acc@15° | median rotation error (°) | median translation error (mm) | fitted to depth (mm) | minutes |",
           "|---|---|---|---|---|---|---|---|---|---|"]
 for o in objects:
     lines.append(f"| {o['obj_id']} | {o['renders_validation_llh']:.2f} | {o['renders_maad_deg']:.1f} | {o['renders_acc_15']:.0%} | {o['instances']} | {o['acc_15']:.0%} | "
-                 f"{o['median_rotation_error_deg']:.1f} | {o['median_translation_error_mm']:.1f} | {o['median_fitted_translation_error_mm']:.1f} | {o['minutes']:.1f} |")
+                 f"{o['median_rotation_error_deg']:.1f} | {o['median_translation_error_mm']:.1f} | {one(o['median_fitted_translation_error_mm'])} | {o['minutes']:.1f} |")
 open(f"{out}/real_frames.md", "w").write("\n".join(lines) + "\n")
 json.dump({"instances": rows, "summary": summary, "objects": objects}, open(f"{out}/real_frames.json", "w"), indent=2)
 print("\n".join(lines))

@@ -7,9 +7,9 @@ use common::render_cube;
 use depth_render::{PinholeCamera, Primitive, Scene};
 use ipdf_model::rotation::ImplicitPdf;
 use ipdf_model::translation::{
-    CameraIntrinsics, CropGeometry, LabelledTranslations, TranslationArgmaxOptions,
-    TranslationConfig, TranslationPdf, TranslationPredictor, TranslationSpace,
-    TranslationTrainOptions, TranslationTrainer, WorkingVolume,
+    CROP_VOLUME_SPAN, CameraIntrinsics, CropGeometry, LabelledTranslations,
+    TranslationArgmaxOptions, TranslationConfig, TranslationPdf, TranslationPredictor,
+    TranslationSpace, TranslationTrainOptions, TranslationTrainer, WorkingVolume, in_crop_span,
 };
 use ipdf_model::{
     CHECKPOINT_FILE, CellHierarchy, CheckpointInfo, CropOptions, FitOptions, ModelError,
@@ -231,6 +231,54 @@ fn translations_are_learned_to_a_few_millimetres() {
     );
 }
 
+#[test]
+fn the_most_likely_translation_projects_near_its_crop() {
+    // Untrained models, whose `F` is any smooth function of the query: over a crop's volume,
+    // the box around the rays through the crop's span, it often peaks in a corner far from
+    // those rays, where no object of that crop could lie.
+    let data = renders(12, 4);
+    let labels = label_sets(&data);
+    let space = TranslationSpace::from_labels(&labels, &data.geometry).unwrap();
+    let options = TranslationArgmaxOptions {
+        cell_size: 8.0,
+        ..TranslationArgmaxOptions::default()
+    };
+    let mut densest_outside = 0;
+    for seed in 0..4 {
+        let mut config = TranslationConfig::small(SIZE as i64, space);
+        config.network.seed = seed;
+        let model = TranslationPdf::new(config, Device::Cpu).unwrap();
+        let predictor = TranslationPredictor::new(&model);
+        for (k, geometry) in data.geometry.iter().enumerate() {
+            let image = data.images.get(k as i64);
+            let volume = predictor.volume(geometry);
+            let refine = predictor.refine_options(geometry, options.cell_size);
+            let masses = predictor.hierarchical(&image, geometry, &refine).unwrap();
+            let (level, index) = masses.cells[masses.densest_in(&volume, 1)[0]];
+            let densest = volume.cell_centre(level, index).unwrap();
+            densest_outside += usize::from(!in_crop_span(geometry, &densest));
+            let argmax = predictor.argmax(&image, geometry, &options).unwrap();
+            let t = argmax.translation;
+            // Where it projects, in crop sides from the crop's centre (pixel centres at
+            // integers), against the half span.
+            let (k_, c) = (geometry.intrinsics, geometry.crop);
+            let u = (k_.fx * t.x / t.z + k_.cx + 0.5 - c.centre_x) / c.side;
+            let v = (k_.fy * t.y / t.z + k_.cy + 0.5 - c.centre_y) / c.side;
+            let half = 0.5 * CROP_VOLUME_SPAN;
+            assert!(
+                u.abs() <= half + 1e-9 && v.abs() <= half + 1e-9,
+                "seed {seed}, crop {k}: {t:?} projects at ({u:.2}, {v:.2}) crop sides"
+            );
+            assert!(volume.contains(&t));
+        }
+    }
+    // The test means something: some densest cells lay outside the span.
+    assert!(
+        densest_outside > 0,
+        "every densest cell projected near its crop"
+    );
+}
+
 /// An isotropic Gaussian log-density (σ mm) around `centre`, at cell centres.
 fn gaussian(
     volume: &WorkingVolume,
@@ -282,6 +330,13 @@ proptest! {
         if volume.contains(&t) {
             prop_assert!(crop_volume.contains(&t), "{t:?} outside {crop_volume:?}");
         }
+        // It projects into the span's square; a translation projecting beyond it does not.
+        prop_assert!(in_crop_span(&geometry, &t));
+        let beyond = 0.5 * CROP_VOLUME_SPAN * side * (1.0 + 0.5 * depth) + 1.0;
+        let (wu, wv) = if u >= 0.0 { (centre_x + beyond, pv) } else { (pu, centre_y - beyond) };
+        let wide = Vector3::new((wu - cx - 0.5) / 600.0 * z, (wv - cy - 0.5) / 610.0 * z, z);
+        prop_assert!(!in_crop_span(&geometry, &wide), "{wide:?}");
+        prop_assert!(!in_crop_span(&geometry, &(-t)));
         // No wider than the span's square at the farthest depth plus how far its edges' rays
         // move between the nearest and farthest depth, nor than the working volume: narrow
         // wherever the crop is (a crop volume that were the whole working volume fails here

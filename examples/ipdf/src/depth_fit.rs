@@ -56,7 +56,9 @@ const SETTLED_M: f64 = 1e-4;
 /// one, the surface rendered again after it. A guess whose surface covers less than half of the
 /// mask's readings (its line of sight misses the object) first moves, in all three directions,
 /// by the difference of the per-axis medians of the masked readings' points and of the rendered
-/// surface's, and is fitted along its new line of sight.
+/// surface's, and is fitted along its new line of sight; one whose surface lies wholly outside
+/// the image (fewer than [`MIN_PIXELS`] pixels of it in view) first puts its origin on the
+/// readings' median point.
 /// `None` where fewer than [`MIN_PIXELS`] pixels are compared, or for a pose not in front of the
 /// camera.
 pub fn fit_translation(
@@ -73,21 +75,33 @@ pub fn fit_translation(
         .zip(depth)
         .filter(|&(&m, &d)| m && d > 0.0 && d.is_finite())
         .count();
-    for first in (0..MAX_STEPS).map(|i| i == 0) {
+    // Until the first step along the line of sight, a guess may be moved onto the readings.
+    let mut may_move = true;
+    let mut stepped = false;
+    for _ in 0..MAX_STEPS {
         let rendered = scene
             .render(camera, &[Instance::new(0, pose)], window)
             .ok()?
             .depth;
         let differences = differences(depth, &rendered, mask);
-        if first && (differences.len() as f64) < MIN_COVERAGE * readings as f64 {
+        if may_move && (differences.len() as f64) < MIN_COVERAGE * readings as f64 {
             // The guess shows the object beside most of its mask (a translation model far
             // off): its line of sight misses the object, so the surface's median point first
-            // moves onto the masked readings' median point.
+            // moves onto the masked readings' median point. A guess whose surface the image
+            // does not show at all moves its origin there, and its surface the turn after.
             let observed = median_point(&unproject(camera, window, depth, Some(mask)))?;
-            let surface = median_point(&unproject(camera, window, &rendered, None))?;
-            pose.translation.vector += observed - surface;
+            match median_point(&unproject(camera, window, &rendered, None)) {
+                Some(surface) => {
+                    pose.translation.vector += observed - surface;
+                    may_move = false;
+                }
+                None if pose.translation.vector.z > 0.0 => pose.translation.vector = observed,
+                None => return None,
+            }
             continue;
         }
+        may_move = false;
+        stepped = true;
         let step = median_of_enough(differences)?;
         let z = pose.translation.vector.z;
         let next = z + step;
@@ -99,7 +113,7 @@ pub fn fit_translation(
             break;
         }
     }
-    Some(pose)
+    stepped.then_some(pose)
 }
 
 /// The pose of `model` (prepared for labelling with `options`) in a frame of `camera` with
@@ -218,6 +232,22 @@ mod tests {
         // 15 cm aside and 10% too far: the box is drawn beside its mask.
         let off = (truth.translation.vector + Vector3::new(0.15, 0.0, 0.0)) * 1.1;
         let guess = Isometry3::from_parts(Translation3::from(off), truth.rotation);
+        let fitted = fit_translation(&scene, &camera(), &depth, &mask, &guess).unwrap();
+        let error = (fitted.translation.vector - truth.translation.vector).norm();
+        assert!(error < 0.01, "{} mm", error * 1e3);
+    }
+
+    #[test]
+    fn a_guess_whose_object_lies_outside_the_image_is_brought_onto_the_mask() {
+        let mesh = box_mesh();
+        let scene = Scene::new(std::slice::from_ref(&mesh));
+        let truth = truth();
+        let depth = render(&scene, truth);
+        let mask: Vec<bool> = depth.iter().map(|&d| d > 0.0).collect();
+        // 80 cm aside: the box would be drawn well right of the image's edge.
+        let off = truth.translation.vector + Vector3::new(0.8, 0.0, 0.0);
+        let guess = Isometry3::from_parts(Translation3::from(off), truth.rotation);
+        assert!(render(&scene, guess).iter().all(|&d| d == 0.0));
         let fitted = fit_translation(&scene, &camera(), &depth, &mask, &guess).unwrap();
         let error = (fitted.translation.vector - truth.translation.vector).norm();
         assert!(error < 0.01, "{} mm", error * 1e3);

@@ -25,7 +25,9 @@ mod volume;
 
 pub use fit::{LabelledTranslations, translation_validation_llh};
 pub use geometry::{CameraIntrinsics, CropGeometry, translations_to_tensor};
-pub use model::{CROP_VOLUME_SPAN, TranslationConfig, TranslationPdf, TranslationSpace};
+pub use model::{
+    CROP_VOLUME_SPAN, TranslationConfig, TranslationPdf, TranslationSpace, in_crop_span,
+};
 pub use predict::{CropTerms, TranslationArgmax, TranslationArgmaxOptions, TranslationPredictor};
 pub use train::{TranslationTrainOptions, TranslationTrainer};
 pub use volume::{MAX_OCTREE_LEVEL, WorkingVolume};

@@ -75,15 +75,7 @@ impl TranslationSpace {
     /// never leaves the working volume, where the model was trained; along an axis where the
     /// rays miss it (a crop where no training object was), the volume's whole extent is kept.
     pub fn crop_volume(&self, geometry: &CropGeometry) -> WorkingVolume {
-        let (k, c) = (&geometry.intrinsics, &geometry.crop);
-        let half = 0.5 * CROP_VOLUME_SPAN * c.side;
-        // x/z and y/z of the square's edges (pixel centres at integers: see `crop_factors`).
-        let slopes = |centre: f64, principal: f64, focal: f64| {
-            [
-                (centre - half - principal - 0.5) / focal,
-                (centre + half - principal - 0.5) / focal,
-            ]
-        };
+        let [x_slopes, y_slopes] = span_slopes(geometry);
         let (near, far) = (self.volume.min[2], self.volume.max[2]);
         let within = |[low, high]: [f64; 2], axis: usize| {
             let (min, max) = (self.volume.min[axis], self.volume.max[axis]);
@@ -91,13 +83,40 @@ impl TranslationSpace {
             let to = (high * near).max(high * far).min(max);
             if to > from { [from, to] } else { [min, max] }
         };
-        let [x0, x1] = within(slopes(c.centre_x, k.cx, k.fx), 0);
-        let [y0, y1] = within(slopes(c.centre_y, k.cy, k.fy), 1);
+        let [x0, x1] = within(x_slopes, 0);
+        let [y0, y1] = within(y_slopes, 1);
         WorkingVolume {
             min: [x0, y0, near],
             max: [x1, y1, far],
         }
     }
+}
+
+/// Whether translation `t` (mm) projects into the square [`CROP_VOLUME_SPAN`] times the crop's
+/// side about its centre: on the rays that bound the crop's volume
+/// ([`TranslationSpace::crop_volume`]), in front of the camera. The volume is the box around
+/// those rays, whose corners far from them hold places no object of the crop could take.
+pub fn in_crop_span(geometry: &CropGeometry, t: &Vector3<f64>) -> bool {
+    let [x, y] = span_slopes(geometry);
+    let inside = |slope: f64, [low, high]: [f64; 2]| (low..=high).contains(&slope);
+    t.z > 0.0 && inside(t.x / t.z, x) && inside(t.y / t.z, y)
+}
+
+/// `x/z` and `y/z` of the edges of the square [`CROP_VOLUME_SPAN`] times the crop's side about
+/// its centre (pixel centres at integers: see `crop_factors`).
+fn span_slopes(geometry: &CropGeometry) -> [[f64; 2]; 2] {
+    let (k, c) = (&geometry.intrinsics, &geometry.crop);
+    let half = 0.5 * CROP_VOLUME_SPAN * c.side;
+    let slopes = |centre: f64, principal: f64, focal: f64| {
+        [
+            (centre - half - principal - 0.5) / focal,
+            (centre + half - principal - 0.5) / focal,
+        ]
+    };
+    [
+        slopes(c.centre_x, k.cx, k.fx),
+        slopes(c.centre_y, k.cy, k.fy),
+    ]
 }
 
 /// The side of the square, in crop sides, whose rays bound a crop's volume

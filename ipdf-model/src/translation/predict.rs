@@ -5,6 +5,7 @@ use nalgebra::Vector3;
 use tch::{Kind, Tensor};
 
 use super::geometry::translations_to_tensor;
+use super::model::in_crop_span;
 use super::{CropGeometry, TranslationPdf, WorkingVolume};
 use crate::ModelError;
 use crate::refine::{CellMasses, RefineOptions, refine_on};
@@ -236,9 +237,12 @@ impl<'m> TranslationPredictor<'m> {
             .collect()
     }
 
-    /// The most likely translation: the densest cells of the hierarchical evaluation, each
-    /// followed by gradient ascent on `F` (steps along the normalised gradient, their length
-    /// decaying linearly from `step_size` mm to 0); the best point visited.
+    /// The most likely translation: the densest cells of the hierarchical evaluation whose
+    /// centres project near the crop ([`in_crop_span`]), each followed by gradient ascent on `F`
+    /// (steps along the normalised gradient, their length decaying linearly from `step_size` mm
+    /// to 0); the best point visited there. An object's centre projects into its crop, so a
+    /// peak of `F` in the volume's corners far from the crop's rays, where no training object of
+    /// such a crop lay, is not taken.
     pub fn argmax(
         &self,
         image: &Tensor,
@@ -264,14 +268,25 @@ impl<'m> TranslationPredictor<'m> {
     ) -> Result<TranslationArgmax, ModelError> {
         options.validate()?;
         let volume = self.volume(geometry);
-        let starts = masses
-            .densest_in(&volume, options.starts)
+        let possible = |t: &Vector3<f64>| volume.contains(t) && in_crop_span(geometry, t);
+        let by_density = masses
+            .densest_in(&volume, masses.cells.len())
             .into_iter()
             .map(|position| {
                 let (level, index) = masses.cells[position];
                 volume.cell_centre(level, index)
             })
             .collect::<Result<Vec<_>, _>>()?;
+        let mut starts: Vec<_> = by_density
+            .iter()
+            .filter(|t| possible(t))
+            .take(options.starts)
+            .copied()
+            .collect();
+        if starts.is_empty() {
+            // No cell centre near the crop (cells wider than its span): the densest anywhere.
+            starts = by_density.into_iter().take(options.starts).collect();
+        }
         let start_scores = self.scores_for(terms, &starts)?;
         let (mut best, mut best_scores) = (starts.clone(), start_scores.clone());
         let device = self.model.device();
@@ -289,7 +304,7 @@ impl<'m> TranslationPredictor<'m> {
             let current = Vec::<f64>::try_from(position.detach().reshape([-1]))?;
             for (i, &value) in values.iter().enumerate() {
                 let t = Vector3::new(current[3 * i], current[3 * i + 1], current[3 * i + 2]);
-                if value > best_scores[i] && volume.contains(&t) {
+                if value > best_scores[i] && possible(&t) {
                     best_scores[i] = value;
                     best[i] = t;
                 }

@@ -26,7 +26,7 @@ use pseudo_label::{LabelOptions, ObjectModel};
 use crate::Error;
 use crate::depth_fit::{fit_translation, pose_from_depth};
 use crate::eval::object_mesh;
-use crate::training_data::{Examples, InstanceRef};
+use crate::training_data::{Examples, InstanceRef, intrinsics_of};
 
 /// BOP's visibility tolerance δ (metres).
 pub const VSD_DELTA_M: f32 = 0.015;
@@ -228,13 +228,7 @@ impl<'a> FrameDepths<'a> {
             Entry::Occupied(entry) => entry.into_mut(),
             Entry::Vacant(entry) => entry.insert(read_scene_camera(&scene.camera_path())?),
         };
-        let intrinsics = scene_cameras.get(&at.im_id).ok_or_else(|| {
-            FileError::new(
-                &scene.camera_path(),
-                at.im_id.to_string(),
-                "no camera for this image",
-            )
-        })?;
+        let intrinsics = intrinsics_of(scene_cameras, &scene, at.im_id)?;
         let depth = read_depth(&path, intrinsics.depth_scale)?;
         let camera = intrinsics
             .camera(depth.width, depth.height)
@@ -380,7 +374,7 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(
-            error.contains("scene_camera.json") && error.contains("no camera for this image"),
+            error.contains("scene_camera.json") && error.contains("the image's intrinsics"),
             "{error}"
         );
     }
