@@ -12,8 +12,8 @@ use parry3d::bounding_volume::Aabb;
 use parry3d::partitioning::{Bvh, BvhBuildStrategy};
 use parry3d::query::PointProjection;
 use registration::{
-    NormalOrientation, PointIndex, PrepareOptions, RegisterOptions, align_fgr, compute_fpfh,
-    downsample_voxel, estimate_normals, prepare_cloud, refine_icp, register,
+    AgreeingScratch, NormalOrientation, PointIndex, PrepareOptions, RegisterOptions, align_fgr,
+    compute_fpfh, downsample_voxel, estimate_normals, prepare_cloud, refine_icp, register,
 };
 use synth_data::trials::{egg_mesh, model_cloud, registration_trials};
 
@@ -149,8 +149,9 @@ fn radius_neighbours(c: &mut Criterion) {
     group.finish();
 }
 
-/// Nearest-one queries over the view (ICP), by kiddo, the grid that
-/// `PointIndex::with_nearest_grid` adds (the model index of labelling's ICP) and parry's BVH.
+/// Nearest-one queries over the view (ICP) and the nearest agreeing point (ICP under a normal
+/// test), by kiddo and by the grid that `PointIndex::with_nearest_grid` adds (the model index
+/// of labelling's ICP); the nearest one by parry's BVH too.
 fn nearest_neighbours(c: &mut Criterion) {
     let (points, bvh) = view_points();
     let kiddo = PointIndex::from_points(&points);
@@ -178,6 +179,25 @@ fn nearest_neighbours(c: &mut Criterion) {
                     shifted
                         .iter()
                         .filter_map(|p| index.nearest_within_radius(&[p.x, p.y, p.z], 1.5 * VOXEL))
+                        .count()
+                })
+            },
+        );
+        // ICP's correspondence under a normal test where the nearest point disagrees: here
+        // one point in four agrees.
+        group.bench_function(
+            format!("nearest_agreeing_1.5_voxels/{name}/{}", points.len()),
+            |b| {
+                let mut scratch = AgreeingScratch::default();
+                let eight = NonZeroUsize::new(8).expect("not zero");
+                b.iter(|| {
+                    shifted
+                        .iter()
+                        .filter_map(|p| {
+                            let query = [p.x, p.y, p.z];
+                            let agrees = |i: u32| i.is_multiple_of(4);
+                            index.nearest_agreeing(&query, 1.5 * VOXEL, eight, agrees, &mut scratch)
+                        })
                         .count()
                 })
             },

@@ -135,37 +135,101 @@ impl CellGrid {
     /// The nearest point to `query` within `radius` (`f32::INFINITY`: any), ties to the lower
     /// index.
     pub(crate) fn nearest(&self, query: &[f32; 3], radius: f32) -> GridAnswer {
-        let mut at = [0usize; 3];
-        for k in 0..3 {
-            let c = (query[k] - self.origin[k]) / self.cell;
-            if !(c >= 0.0 && c < self.dims[k] as f32) {
-                // Outside the grid, which reaches `FAR_CELLS` cells past every point.
-                return if radius < (FAR_CELLS - 0.01) * self.cell {
-                    GridAnswer::Found(None)
-                } else {
-                    GridAnswer::Undecided
-                };
-            }
-            // Truncation: the floor of a number that is not negative.
-            at[k] = c as usize;
-        }
-        let i = (at[2] * self.dims[1] + at[1]) * self.dims[0] + at[0];
-        let (from, to) = (self.starts[i] as usize, self.starts[i + 1] as usize);
-        if from == to {
-            return if self.clearance[i] > radius {
-                GridAnswer::Found(None)
-            } else {
-                GridAnswer::Undecided
-            };
-        }
+        let (_, candidates) = match self.candidates_near(query, radius) {
+            Ok(found) => found,
+            Err(answer) => return answer,
+        };
         let mut best: Option<(u32, f32)> = None;
         // Candidates come in increasing index: the first of equal distances stays.
-        for &id in &self.candidates[from..to] {
+        for &id in candidates {
             let d = distance_squared(&self.points[id as usize], query);
             if best.is_none_or(|(_, b)| d < b) {
                 best = Some((id, d));
             }
         }
         GridAnswer::Found(best.filter(|&(_, d)| d <= radius * radius))
+    }
+
+    /// The nearest of the `max_neighbours` nearest points within `radius` of `query` for which
+    /// `agrees` holds (`None`: none of them), ties in distance to the lower index; `scratch`
+    /// holds the cell's candidates within the radius, nearest first. Undecided where the cell's
+    /// candidates cannot be shown to hold every point that near: a candidate list holds every
+    /// point within the cell's clearance plus its diagonal of any query in the cell.
+    pub(crate) fn nearest_agreeing(
+        &self,
+        query: &[f32; 3],
+        radius: f32,
+        max_neighbours: usize,
+        agrees: impl Fn(u32) -> bool,
+        scratch: &mut Vec<(f32, u32)>,
+    ) -> GridAnswer {
+        let (i, candidates) = match self.candidates_near(query, radius) {
+            Ok(found) => found,
+            Err(answer) => return answer,
+        };
+        // Every point nearer than this to the query is a candidate of its cell.
+        let complete = self.clearance[i] + 3f32.sqrt() * self.cell;
+        let complete_squared = complete * complete;
+        scratch.clear();
+        scratch.extend(
+            candidates
+                .iter()
+                .map(|&id| (distance_squared(&self.points[id as usize], query), id))
+                .filter(|&(d, _)| d <= radius * radius),
+        );
+        scratch.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        for &(d, id) in scratch.iter().take(max_neighbours) {
+            if d > complete_squared {
+                return GridAnswer::Undecided;
+            }
+            if agrees(id) {
+                return GridAnswer::Found(Some((id, d)));
+            }
+        }
+        if scratch.len() >= max_neighbours || radius <= complete {
+            GridAnswer::Found(None)
+        } else {
+            GridAnswer::Undecided
+        }
+    }
+
+    /// The cell holding `query` and its candidates, or the answer where it has none: no point
+    /// within `radius` where the grid shows there is none, else undecided.
+    fn candidates_near(
+        &self,
+        query: &[f32; 3],
+        radius: f32,
+    ) -> Result<(usize, &[u32]), GridAnswer> {
+        let Some(i) = self.cell_of(query) else {
+            // Outside the grid, which reaches `FAR_CELLS` cells past every point.
+            return Err(if radius < (FAR_CELLS - 0.01) * self.cell {
+                GridAnswer::Found(None)
+            } else {
+                GridAnswer::Undecided
+            });
+        };
+        let (from, to) = (self.starts[i] as usize, self.starts[i + 1] as usize);
+        if from == to {
+            return Err(if self.clearance[i] > radius {
+                GridAnswer::Found(None)
+            } else {
+                GridAnswer::Undecided
+            });
+        }
+        Ok((i, &self.candidates[from..to]))
+    }
+
+    /// The index of the cell holding `query`, `None` outside the grid.
+    fn cell_of(&self, query: &[f32; 3]) -> Option<usize> {
+        let mut at = [0usize; 3];
+        for k in 0..3 {
+            let c = (query[k] - self.origin[k]) / self.cell;
+            if !(c >= 0.0 && c < self.dims[k] as f32) {
+                return None;
+            }
+            // Truncation: the floor of a number that is not negative.
+            at[k] = c as usize;
+        }
+        Some((at[2] * self.dims[1] + at[1]) * self.dims[0] + at[0])
     }
 }

@@ -7,7 +7,7 @@ use rayon::prelude::*;
 
 use crate::cloud::centre_and_radius;
 use crate::error::positive_metres;
-use crate::neighbours::{Neighbour, PointIndex};
+use crate::neighbours::{AgreeingScratch, Neighbour, PointIndex};
 use crate::twist::{NormalEquations, kabsch, mean_shift};
 use crate::{PointCloud, RegistrationError};
 
@@ -459,19 +459,17 @@ fn correspondences(
     source
         .par_iter()
         .zip(test.source)
-        .map_init(Vec::new, |found, (p, normal)| {
+        .map_init(AgreeingScratch::default, |scratch, (p, normal)| {
             let moved = pose * p;
             let query = [moved.x, moved.y, moved.z];
             let turned = pose.rotation * normal;
-            let agrees =
-                |n: &Neighbour| turned.dot(&test.target[n.index as usize]) >= test.min_cosine;
+            let agrees = |index: u32| turned.dot(&test.target[index as usize]) >= test.min_cosine;
             // The nearest usually agrees; only otherwise are the next ones searched.
             let nearest = target_index.nearest_within_radius(&query, max_distance)?;
-            if agrees(&nearest) {
+            if agrees(nearest.index) {
                 return Some(nearest);
             }
-            target_index.nearest_within(&query, max_distance, candidates, found);
-            found.iter().find(|n| agrees(n)).copied()
+            target_index.nearest_agreeing(&query, max_distance, candidates, agrees, scratch)
         })
         .collect()
 }

@@ -57,7 +57,7 @@ pub use fpfh::{FPFH_LEN, Fpfh, FpfhOptions, compute_fpfh};
 pub use icp::{
     Alignment, IcpMethod, IcpOptions, RobustKernel, WeakTurn, overlap, refine_icp, weak_turns,
 };
-pub use neighbours::{Neighbour, PointIndex};
+pub use neighbours::{AgreeingScratch, Neighbour, PointIndex};
 pub use normals::{NormalOptions, NormalOrientation, estimate_normals};
 pub use prepare::{PrepareOptions, PreparedCloud, prepare_cloud};
 pub use register::{RegisterOptions, Registration, register};

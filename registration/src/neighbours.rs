@@ -107,6 +107,39 @@ impl PointIndex {
         })
     }
 
+    /// The nearest of the `max_neighbours` nearest entries within `radius` of `query` whose
+    /// index `agrees` accepts, if any: ICP's correspondence under a normal test. `scratch` is
+    /// working space. The grid answers where it can show that its cell's candidates hold every
+    /// point that near (the same answers but among points at the very same distance), the
+    /// tree ([`PointIndex::nearest_within`]) otherwise: on a view's points with one in four
+    /// agreeing, 1.6× faster than the tree alone (`cargo bench -p benches --bench
+    /// registration -- neighbours/nearest_agreeing`).
+    pub fn nearest_agreeing(
+        &self,
+        query: &[f32; 3],
+        radius: f32,
+        max_neighbours: NonZeroUsize,
+        agrees: impl Fn(u32) -> bool,
+        scratch: &mut AgreeingScratch,
+    ) -> Option<Neighbour> {
+        if let Some(grid) = &self.grid
+            && let GridAnswer::Found(found) = grid.nearest_agreeing(
+                query,
+                radius,
+                max_neighbours.get(),
+                &agrees,
+                &mut scratch.candidates,
+            )
+        {
+            return found.map(|(index, distance_squared)| Neighbour {
+                index,
+                distance_squared,
+            });
+        }
+        self.nearest_within(query, radius, max_neighbours, &mut scratch.neighbours);
+        scratch.neighbours.iter().find(|n| agrees(n.index)).copied()
+    }
+
     /// Up to `max_neighbours` nearest entries within `radius` of `query` (the query itself
     /// included when indexed), nearest first, written into `out` (cleared first). This is
     /// Open3D's "hybrid" search.
@@ -131,6 +164,13 @@ impl PointIndex {
             distance_squared: n.distance,
         }));
     }
+}
+
+/// Working space of [`PointIndex::nearest_agreeing`], kept between queries.
+#[derive(Debug, Default)]
+pub struct AgreeingScratch {
+    candidates: Vec<(f32, u32)>,
+    neighbours: Vec<Neighbour>,
 }
 
 #[cfg(test)]
@@ -252,6 +292,63 @@ mod tests {
                     found.map(|n| n.distance_squared),
                     from_tree.map(|n| n.distance_squared)
                 );
+            }
+        }
+    }
+
+    /// The normal of a point of [`box_surface`]: that of the face it lies on.
+    fn box_normal(p: &Point3<f32>) -> [f32; 3] {
+        let half = [0.03f32, 0.02, 0.01];
+        let face = (0..3)
+            .min_by(|&a, &b| (half[a] - p[a].abs()).total_cmp(&(half[b] - p[b].abs())))
+            .expect("three axes");
+        std::array::from_fn(|k| if k == face { p[k].signum() } else { 0.0 })
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(24))]
+
+        /// ICP's correspondence under a normal test, from the grid and from the tree, is a
+        /// brute force's: the nearest of the 8 nearest within the radius whose normal agrees
+        /// with the query's, for queries on a box's surface, near it, inside and far away, with
+        /// normals that agree with the nearest face or not.
+        #[test]
+        fn agreeing_neighbour_matches_brute_force(
+            seed in 0u64..1_000_000,
+            count in 64usize..3000,
+            spread in proptest::sample::select(vec![0.0005f32, 0.003, 0.02, 0.2]),
+            radius in proptest::sample::select(vec![0.002f32, 0.008, 0.05, f32::INFINITY]),
+        ) {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let points = box_surface(&mut rng, count);
+            let normals: Vec<[f32; 3]> = points.iter().map(box_normal).collect();
+            let entries: Vec<[f32; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
+            let grid = PointIndex::with_nearest_grid(&points);
+            let tree = PointIndex::from_points(&points);
+            let eight = NonZeroUsize::new(8).expect("not zero");
+            let mut scratch = AgreeingScratch::default();
+            for _ in 0..200 {
+                let base = points[rng.random_range(0..points.len())];
+                let query = [0, 1, 2].map(|k| base[k] + rng.random_range(-spread..spread));
+                let axis = rng.random_range(0..3usize);
+                let sign = if rng.random() { 1.0f32 } else { -1.0 };
+                let agrees = |i: u32| normals[i as usize][axis] * sign > 0.5;
+                let distance = |i: u32| {
+                    let p = entries[i as usize];
+                    (0..3).map(|k| (p[k] - query[k]).powi(2)).sum::<f32>()
+                };
+                let truth = brute_force(&entries, &query, radius, 8)
+                    .into_iter()
+                    .find(|&i| agrees(i))
+                    .map(distance);
+                for index in [&grid, &tree] {
+                    let found = index.nearest_agreeing(&query, radius, eight, agrees, &mut scratch);
+                    proptest::prop_assert_eq!(found.map(|n| n.distance_squared), truth);
+                    if let Some(n) = found {
+                        proptest::prop_assert!(agrees(n.index));
+                        proptest::prop_assert_eq!(distance(n.index), n.distance_squared);
+                    }
+                }
             }
         }
     }
