@@ -256,7 +256,10 @@ mod tests {
 
         /// The grid's answers are the k-d tree's and a brute force's: the same distance to a
         /// point at that distance, none exactly where no point lies within the radius; for
-        /// queries on the surface, near it, inside the box and far away.
+        /// queries on the surface, near it, inside the box and far away. So is ICP's
+        /// correspondence under a normal test, the nearest of the 8 nearest within the radius
+        /// whose normal agrees with the query's (the normal of one face, at random: agreeing
+        /// with the nearest face or not).
         #[test]
         fn grid_matches_brute_force(
             seed in 0u64..1_000_000,
@@ -267,9 +270,12 @@ mod tests {
             let mut rng = ChaCha8Rng::seed_from_u64(seed);
             let points = box_surface(&mut rng, count);
             let entries: Vec<[f32; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
+            let normals: Vec<[f32; 3]> = points.iter().map(box_normal).collect();
             let grid = PointIndex::with_nearest_grid(&points);
             proptest::prop_assert!(grid.grid.is_some());
             let tree = PointIndex::from_points(&points);
+            let eight = NonZeroUsize::new(8).expect("not zero");
+            let mut scratch = AgreeingScratch::default();
             for _ in 0..200 {
                 let base = points[rng.random_range(0..points.len())];
                 let query = [0, 1, 2].map(|k| base[k] + rng.random_range(-spread..spread));
@@ -292,51 +298,10 @@ mod tests {
                     found.map(|n| n.distance_squared),
                     from_tree.map(|n| n.distance_squared)
                 );
-            }
-        }
-    }
 
-    /// The normal of a point of [`box_surface`]: that of the face it lies on.
-    fn box_normal(p: &Point3<f32>) -> [f32; 3] {
-        let half = [0.03f32, 0.02, 0.01];
-        let face = (0..3)
-            .min_by(|&a, &b| (half[a] - p[a].abs()).total_cmp(&(half[b] - p[b].abs())))
-            .expect("three axes");
-        std::array::from_fn(|k| if k == face { p[k].signum() } else { 0.0 })
-    }
-
-    proptest::proptest! {
-        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(24))]
-
-        /// ICP's correspondence under a normal test, from the grid and from the tree, is a
-        /// brute force's: the nearest of the 8 nearest within the radius whose normal agrees
-        /// with the query's, for queries on a box's surface, near it, inside and far away, with
-        /// normals that agree with the nearest face or not.
-        #[test]
-        fn agreeing_neighbour_matches_brute_force(
-            seed in 0u64..1_000_000,
-            count in 64usize..3000,
-            spread in proptest::sample::select(vec![0.0005f32, 0.003, 0.02, 0.2]),
-            radius in proptest::sample::select(vec![0.002f32, 0.008, 0.05, f32::INFINITY]),
-        ) {
-            let mut rng = ChaCha8Rng::seed_from_u64(seed);
-            let points = box_surface(&mut rng, count);
-            let normals: Vec<[f32; 3]> = points.iter().map(box_normal).collect();
-            let entries: Vec<[f32; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
-            let grid = PointIndex::with_nearest_grid(&points);
-            let tree = PointIndex::from_points(&points);
-            let eight = NonZeroUsize::new(8).expect("not zero");
-            let mut scratch = AgreeingScratch::default();
-            for _ in 0..200 {
-                let base = points[rng.random_range(0..points.len())];
-                let query = [0, 1, 2].map(|k| base[k] + rng.random_range(-spread..spread));
                 let axis = rng.random_range(0..3usize);
                 let sign = if rng.random() { 1.0f32 } else { -1.0 };
                 let agrees = |i: u32| normals[i as usize][axis] * sign > 0.5;
-                let distance = |i: u32| {
-                    let p = entries[i as usize];
-                    (0..3).map(|k| (p[k] - query[k]).powi(2)).sum::<f32>()
-                };
                 let truth = brute_force(&entries, &query, radius, 8)
                     .into_iter()
                     .find(|&i| agrees(i))
@@ -351,6 +316,15 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The normal of a point of [`box_surface`]: that of the face it lies on.
+    fn box_normal(p: &Point3<f32>) -> [f32; 3] {
+        let half = [0.03f32, 0.02, 0.01];
+        let face = (0..3)
+            .min_by(|&a, &b| (half[a] - p[a].abs()).total_cmp(&(half[b] - p[b].abs())))
+            .expect("three axes");
+        std::array::from_fn(|k| if k == face { p[k].signum() } else { 0.0 })
     }
 
     #[test]
