@@ -13,7 +13,8 @@ use bop_dataset::{
 
 use depth_render::SensorPreset;
 
-use crate::instance::{InstanceLabels, LabelFailure, label_instance};
+use crate::early_stop;
+use crate::instance::{InstanceLabels, LabelFailure, label_instance, noise_ratio};
 use crate::{LabelError, ObjectModel, Observation, PixelLattice, ReferenceOptions, reference_set};
 
 /// How the labels of an instance after the first are found.
@@ -67,7 +68,9 @@ pub struct LabelOptions {
     /// Poses scoring more than this above the best are dropped: what depth tells apart from
     /// the best pose is not a symmetry of it.
     pub score_margin: f64,
-    /// A trial scoring below this stops the search for the first label early.
+    /// A trial scoring below this stops the search for the first label early; over a
+    /// dataset, raised per object and scene where its true poses score higher (see the
+    /// `early_stop` module of this crate).
     pub good_score: f64,
     /// Labels closer than this (degrees) to a better one are merged into it.
     pub merge_angle_deg: f64,
@@ -120,12 +123,18 @@ impl LabelOptions {
     /// (E|N(0, ratio²)| in expected errors), so that a wrong pose is not accepted on depth
     /// cleaner than the sensor's (clean renders).
     pub fn for_noise(&self, ratio: f64) -> Self {
-        let shift = 0.8 * (ratio - 1.0);
+        let shift = Self::noise_shift(ratio);
         Self {
             max_score: self.max_score + shift,
             good_score: self.good_score + shift,
             ..self.clone()
         }
+    }
+
+    /// How far [`Self::for_noise`] moves the scores' thresholds for depth `ratio` times as
+    /// noisy as the sensor's: 0.8 · (ratio − 1).
+    pub fn noise_shift(ratio: f64) -> f64 {
+        0.8 * (ratio - 1.0)
     }
 
     /// The highest score the acceptance rule accepts where the best pose scores `best`: under
@@ -226,6 +235,10 @@ pub struct LabelSummary {
     pub mesh_repairs: BTreeMap<u32, depth_render::MeshRepairs>,
     /// Failed instances by kind ([`LabelFailure::kind`]).
     pub failures: BTreeMap<&'static str, usize>,
+    /// The early stop of each object in each scene labelled by this run, by object id:
+    /// `good_score`, or higher where a sample of the scene's instances scored higher (see
+    /// the `early_stop` module of this crate).
+    pub good_scores: BTreeMap<u32, Vec<f64>>,
     /// Wall-clock seconds.
     pub seconds: f64,
 }
@@ -265,8 +278,8 @@ struct Job<'a> {
     recorded: serde_json::Value,
     /// A scene's output file.
     output: fn(&SceneDir) -> std::path::PathBuf,
-    /// The labels of one instance (its seed given).
-    label: &'a (dyn Fn(&ObjectModel, &Observation, u64) -> InstanceLabels + Sync),
+    /// The labels of one instance (its options and seed given).
+    label: &'a (dyn Fn(&ObjectModel, &Observation, &LabelOptions, u64) -> InstanceLabels + Sync),
 }
 
 /// What `label_options.json` records: everything that decides the labels.
@@ -314,7 +327,7 @@ pub fn label_dataset(
         options_file: LABEL_OPTIONS_FILE,
         recorded: serde_json::json!({}),
         output: SceneDir::pseudo_gt_path,
-        label: &|model, observation, seed| label_instance(model, observation, options, seed),
+        label: &label_instance,
     };
     run_split(dataset, dataset_options, options, &job, progress)
 }
@@ -336,7 +349,7 @@ pub fn reference_dataset(
         options_file: REFERENCE_OPTIONS_FILE,
         recorded: serde_json::json!({ "reference": reference }),
         output: SceneDir::reference_gt_path,
-        label: &|model, observation, _| InstanceLabels {
+        label: &|model, observation, options, _| InstanceLabels {
             labels: reference_set(model, observation, options, reference).map(|set| set.poses),
             warning: None,
         },
@@ -378,11 +391,15 @@ fn run_split(
                 );
             }
         }
-        let labelled = label_scene(&scene, &instances, &models, options, job, progress)?;
+        let (labelled, good_scores) =
+            label_scene(&scene, &instances, &models, options, job, progress)?;
         summary.count(&labelled);
+        for (obj_id, good) in good_scores {
+            summary.good_scores.entry(obj_id).or_default().push(good);
+        }
         let labelled = labelled
             .into_iter()
-            .map(|(im_id, list)| (im_id, list.into_iter().map(|(i, _)| i).collect()))
+            .map(|(im_id, list)| (im_id, list.into_iter().map(|o| o.instance).collect()))
             .collect();
         write_pseudo_gt(&(job.output)(&scene), &labelled)?;
     }
@@ -448,8 +465,10 @@ fn record_options(
     Ok(())
 }
 
-/// The labels of every image of `scene` (in parallel), `instances` giving the object id of
-/// each of its instances by image id; `progress` advances by one per image.
+/// The labels of every image of `scene` (in parallel, by image id), `instances` giving the
+/// object id of each of its instances by image id, and the early stop of each object
+/// ([`early_stop`]): a sample of the images is labelled first to set it; `progress` advances
+/// by one per image.
 fn label_scene(
     scene: &SceneDir,
     instances: &BTreeMap<u32, Vec<u32>>,
@@ -457,39 +476,66 @@ fn label_scene(
     options: &LabelOptions,
     job: &Job,
     progress: &dyn Progress,
-) -> Result<Vec<(u32, Vec<Outcome>)>, LabelError> {
+) -> Result<(Vec<(u32, Vec<Outcome>)>, BTreeMap<u32, f64>), LabelError> {
     let cameras = read_scene_camera(&scene.camera_path())?;
-    Ok(instances
-        .par_iter()
-        .map(|(&im_id, obj_ids)| {
-            let result = match cameras.get(&im_id) {
-                Some(intrinsics) => {
-                    let image = Image {
-                        scene,
-                        im_id,
-                        intrinsics,
-                    };
-                    label_image(&image, obj_ids, models, options, job)
-                }
-                None => failed_image(
-                    obj_ids,
-                    &LabelFailure::Input(format!(
-                        "{}: image {im_id} is missing",
-                        scene.camera_path().display()
-                    )),
-                ),
+    let ids: Vec<u32> = instances.keys().copied().collect();
+    let (sample, rest) = early_stop::split_sample(&ids);
+    let label = |ids: &[u32], per_object: &BTreeMap<u32, LabelOptions>| {
+        ids.par_iter()
+            .map(|&im_id| {
+                let obj_ids = &instances[&im_id];
+                let result = match cameras.get(&im_id) {
+                    Some(intrinsics) => {
+                        let image = Image {
+                            scene,
+                            im_id,
+                            intrinsics,
+                        };
+                        label_image(&image, obj_ids, models, options, per_object, job)
+                    }
+                    None => failed_image(
+                        obj_ids,
+                        &LabelFailure::Input(format!(
+                            "{}: image {im_id} is missing",
+                            scene.camera_path().display()
+                        )),
+                    ),
+                };
+                progress.advance(1);
+                (im_id, result)
+            })
+            .collect::<Vec<_>>()
+    };
+    let mut labelled = label(&sample, &BTreeMap::new());
+    let scores: Vec<(u32, f64)> = labelled
+        .iter()
+        .flat_map(|(_, list)| list)
+        .filter_map(|o| Some((o.instance.obj_id, o.sensor_score?)))
+        .collect();
+    let good_scores = early_stop::good_scores(options, &scores);
+    let per_object = good_scores
+        .iter()
+        .map(|(&obj_id, &good_score)| {
+            let options = LabelOptions {
+                good_score,
+                ..options.clone()
             };
-            progress.advance(1);
-            (im_id, result)
+            (obj_id, options)
         })
-        .collect())
+        .collect();
+    labelled.extend(label(&rest, &per_object));
+    labelled.sort_by_key(|(im_id, _)| *im_id);
+    Ok((labelled, good_scores))
 }
 
 impl LabelSummary {
     /// Counts the images, instances, labels, warnings and failures of a scene's `labelled`
     /// images.
     fn count(&mut self, labelled: &[(u32, Vec<Outcome>)]) {
-        for (instance, failure) in labelled.iter().flat_map(|(_, list)| list) {
+        for Outcome {
+            instance, failure, ..
+        } in labelled.iter().flat_map(|(_, list)| list)
+        {
             self.instances += 1;
             self.labels += instance.labels.len();
             self.warnings += usize::from(instance.warning.is_some());
@@ -502,8 +548,15 @@ impl LabelSummary {
     }
 }
 
-/// An instance's pseudo labels and, when labelling failed, the kind of failure.
-type Outcome = (PseudoInstance, Option<&'static str>);
+/// An instance's pseudo labels and what the labelling learnt of it.
+struct Outcome {
+    instance: PseudoInstance,
+    /// The kind of failure, when labelling failed.
+    failure: Option<&'static str>,
+    /// The best label's score as on the sensor's own noise ([`LabelOptions::noise_shift`]
+    /// taken off), when labelled.
+    sensor_score: Option<f64>,
+}
 
 /// The outcome of an instance whose labelling failed with `failure`.
 fn failed_instance(obj_id: u32, failure: &LabelFailure) -> Outcome {
@@ -512,7 +565,11 @@ fn failed_instance(obj_id: u32, failure: &LabelFailure) -> Outcome {
         error: Some(failure.to_string()),
         ..PseudoInstance::default()
     };
-    (instance, Some(failure.kind()))
+    Outcome {
+        instance,
+        failure: Some(failure.kind()),
+        sensor_score: None,
+    }
 }
 
 /// Image id → the object id of each instance, in mask order: from `scene_gt.json` (only
@@ -591,12 +648,14 @@ struct Image<'a> {
     intrinsics: &'a Intrinsics,
 }
 
-/// The labels of every instance of one image, by `job`.
+/// The labels of every instance of one image, by `job`, with the options of its object in
+/// `per_object`, else `options`.
 fn label_image(
     image: &Image,
     obj_ids: &[u32],
     models: &BTreeMap<u32, Option<Arc<ObjectModel>>>,
     options: &LabelOptions,
+    per_object: &BTreeMap<u32, LabelOptions>,
     job: &Job,
 ) -> Vec<Outcome> {
     let Image {
@@ -646,7 +705,17 @@ fn label_image(
                 return failed_instance(obj_id, &LabelFailure::EmptyMask);
             };
             let seed = instance_seed(options.seed, scene.id, im_id, k);
-            let found = (job.label)(model, &observation, seed);
+            let found = (job.label)(
+                model,
+                &observation,
+                &per_object.get(&obj_id).unwrap_or(options),
+                seed,
+            );
+            let sensor_score = found.labels.as_ref().ok().and_then(|labels| {
+                let best = labels.iter().map(|l| l.score).min_by(f64::total_cmp)?;
+                let ratio = noise_ratio(&observation, &options.sensor.sensor());
+                Some(best - LabelOptions::noise_shift(ratio))
+            });
             let (labels, error, kind) = match &found.labels {
                 Ok(labels) => (labels.clone(), None, None),
                 Err(failure) => (Vec::new(), Some(failure.to_string()), Some(failure.kind())),
@@ -667,7 +736,11 @@ fn label_image(
                 warning: found.warning,
                 best,
             };
-            (instance, kind)
+            Outcome {
+                instance,
+                failure: kind,
+                sensor_score,
+            }
         })
         .collect()
 }
@@ -675,6 +748,85 @@ fn label_image(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The early stop's wiring. A scene of 100 images of one object, each a flat, clean depth
+    /// patch (noise ratio 0, so each score is 0.8 under what the sensor's noise would give)
+    /// 600 + i mm away, labelled by a stand-in that scores image i at 0.06 + 0.0005 i: the 64
+    /// images ⌊100 j / 64⌋ are labelled with the good score as given, the other 36 with the
+    /// upper fence of the sample's scores on the sensor's noise, 0.86 + 0.0005 i.
+    #[test]
+    fn the_rest_of_a_scene_gets_the_early_stop_of_its_sample() {
+        let dir = tempfile::tempdir().unwrap();
+        let scene = SceneDir {
+            dir: dir.path().join("000000"),
+            id: 0,
+        };
+        let (width, height) = (32, 24);
+        let intrinsics = Intrinsics {
+            fx: 100.0,
+            fy: 100.0,
+            cx: 16.0,
+            cy: 12.0,
+            depth_scale: 1.0,
+        };
+        for sub in ["depth", "mask_visib"] {
+            std::fs::create_dir_all(scene.dir.join(sub)).unwrap();
+        }
+        let mut cameras = BTreeMap::new();
+        for im_id in 0..100u32 {
+            let depth = vec![0.6 + 0.001 * im_id as f32; width * height];
+            let (w, h) = (width as u32, height as u32);
+            bop_dataset::write_depth(&scene.depth_path(im_id), &depth, w, h, 1.0).unwrap();
+            let mask = vec![true; width * height];
+            bop_dataset::write_mask(&scene.mask_visib_path(im_id, 0), &mask, w, h).unwrap();
+            cameras.insert(im_id, intrinsics.clone());
+        }
+        bop_dataset::write_scene_camera(&scene.camera_path(), &cameras).unwrap();
+        let instances: BTreeMap<u32, Vec<u32>> = (0..100).map(|im_id| (im_id, vec![1])).collect();
+        let options = LabelOptions::default();
+        let object = synth_data::SynthObject::built_in(synth_data::ObjectKind::Box).unwrap();
+        let model = ObjectModel::new(1, &object.mesh, &options).unwrap();
+        let models = BTreeMap::from([(1, Some(Arc::new(model)))]);
+
+        let seen = std::sync::Mutex::new(BTreeMap::new());
+        let stand_in = |_: &ObjectModel, observation: &Observation, options: &LabelOptions, _| {
+            let centre = observation.depth[observation.depth.len() / 2];
+            let im_id = ((f64::from(centre) - 0.6) * 1e3).round() as u32;
+            seen.lock().unwrap().insert(im_id, options.good_score);
+            InstanceLabels {
+                labels: Ok(vec![PseudoLabel {
+                    pose: nalgebra::Isometry3::identity(),
+                    score: 0.06 + 0.0005 * f64::from(im_id),
+                }]),
+                warning: None,
+            }
+        };
+        let job = Job {
+            options_file: LABEL_OPTIONS_FILE,
+            recorded: serde_json::json!({}),
+            output: SceneDir::pseudo_gt_path,
+            label: &stand_in,
+        };
+        let (labelled, good_scores) =
+            label_scene(&scene, &instances, &models, &options, &job, &()).unwrap();
+
+        let ids: Vec<u32> = labelled.iter().map(|(im_id, _)| *im_id).collect();
+        assert_eq!(ids, (0..100).collect::<Vec<_>>());
+        let sample: Vec<u32> = (0..64).map(|j| j * 100 / 64).collect();
+        let sample_scores: Vec<f64> = sample
+            .iter()
+            .map(|&i| 0.86 + 0.0005 * f64::from(i))
+            .collect();
+        let fence = early_stop::upper_fence(&sample_scores).unwrap();
+        assert!(fence > 0.9 && fence < 0.9 + early_stop::MAX_RAISE, "{fence}");
+        assert!((good_scores[&1] - fence).abs() < 1e-9, "{good_scores:?}");
+        let seen = seen.into_inner().unwrap();
+        assert_eq!(seen.len(), 100);
+        for (im_id, good) in seen {
+            let expected = if sample.contains(&im_id) { 0.9 } else { fence };
+            assert!((good - expected).abs() < 1e-9, "image {im_id}: {good}");
+        }
+    }
 
     #[test]
     fn a_pixel_stride_of_zero_is_refused_by_name() {

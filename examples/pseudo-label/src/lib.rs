@@ -49,6 +49,7 @@
 //! ```
 mod arc;
 mod dataset;
+mod early_stop;
 mod error;
 mod instance;
 mod model;
