@@ -476,7 +476,7 @@ fn label_scene(
     options: &LabelOptions,
     job: &Job,
     progress: &dyn Progress,
-) -> Result<(Vec<(u32, Vec<Outcome>)>, BTreeMap<u32, f64>), LabelError> {
+) -> Result<(ImageOutcomes, BTreeMap<u32, f64>), LabelError> {
     let cameras = read_scene_camera(&scene.camera_path())?;
     let ids: Vec<u32> = instances.keys().copied().collect();
     let (sample, rest) = early_stop::split_sample(&ids);
@@ -531,7 +531,7 @@ fn label_scene(
 impl LabelSummary {
     /// Counts the images, instances, labels, warnings and failures of a scene's `labelled`
     /// images.
-    fn count(&mut self, labelled: &[(u32, Vec<Outcome>)]) {
+    fn count(&mut self, labelled: &ImageOutcomes) {
         for Outcome {
             instance, failure, ..
         } in labelled.iter().flat_map(|(_, list)| list)
@@ -547,6 +547,9 @@ impl LabelSummary {
         self.images += labelled.len();
     }
 }
+
+/// Each image's id and the outcome of each of its instances.
+type ImageOutcomes = Vec<(u32, Vec<Outcome>)>;
 
 /// An instance's pseudo labels and what the labelling learnt of it.
 struct Outcome {
@@ -708,7 +711,7 @@ fn label_image(
             let found = (job.label)(
                 model,
                 &observation,
-                &per_object.get(&obj_id).unwrap_or(options),
+                per_object.get(&obj_id).unwrap_or(options),
                 seed,
             );
             let sensor_score = found.labels.as_ref().ok().and_then(|labels| {
@@ -779,7 +782,7 @@ mod tests {
             bop_dataset::write_depth(&scene.depth_path(im_id), &depth, w, h, 1.0).unwrap();
             let mask = vec![true; width * height];
             bop_dataset::write_mask(&scene.mask_visib_path(im_id, 0), &mask, w, h).unwrap();
-            cameras.insert(im_id, intrinsics.clone());
+            cameras.insert(im_id, intrinsics);
         }
         bop_dataset::write_scene_camera(&scene.camera_path(), &cameras).unwrap();
         let instances: BTreeMap<u32, Vec<u32>> = (0..100).map(|im_id| (im_id, vec![1])).collect();
@@ -818,7 +821,10 @@ mod tests {
             .map(|&i| 0.86 + 0.0005 * f64::from(i))
             .collect();
         let fence = early_stop::upper_fence(&sample_scores).unwrap();
-        assert!(fence > 0.9 && fence < 0.9 + early_stop::MAX_RAISE, "{fence}");
+        assert!(
+            fence > 0.9 && fence < 0.9 + early_stop::MAX_RAISE,
+            "{fence}"
+        );
         assert!((good_scores[&1] - fence).abs() < 1e-9, "{good_scores:?}");
         let seen = seen.into_inner().unwrap();
         assert_eq!(seen.len(), 100);

@@ -30,21 +30,17 @@ pub(crate) const MAX_RAISE: f64 = 0.05;
 /// `ids` split into the sample ([`SAMPLE_IMAGES`] of them spread evenly, the first
 /// included; all of them when there are no more) and the rest, both in the order given.
 pub(crate) fn split_sample(ids: &[u32]) -> (Vec<u32>, Vec<u32>) {
-    let n = ids.len();
-    let k = SAMPLE_IMAGES.min(n);
-    let mut in_sample = vec![false; n];
-    for i in 0..k {
-        in_sample[i * n / k] = true;
+    let (n, k) = (ids.len(), SAMPLE_IMAGES.min(ids.len()));
+    let (mut sample, mut rest) = (Vec::with_capacity(k), Vec::with_capacity(n - k));
+    for (position, &id) in ids.iter().enumerate() {
+        // The sample's j-th image sits at position ⌊j n / k⌋.
+        if sample.len() < k && position == sample.len() * n / k {
+            sample.push(id);
+        } else {
+            rest.push(id);
+        }
     }
-    let (sample, rest): (Vec<(u32, bool)>, Vec<(u32, bool)>) = ids
-        .iter()
-        .copied()
-        .zip(in_sample)
-        .partition(|&(_, sampled)| sampled);
-    (
-        sample.into_iter().map(|(id, _)| id).collect(),
-        rest.into_iter().map(|(id, _)| id).collect(),
-    )
+    (sample, rest)
 }
 
 /// Tukey's upper fence of `scores`: the third quartile plus 1.5 times the interquartile
