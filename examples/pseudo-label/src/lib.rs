@@ -6,7 +6,8 @@
 //! object's symmetries (see [`symmetries`] for why and how), poses scoring worse than a
 //! threshold dropped and near-duplicates merged.
 //!
-//! [`label_dataset`] runs over a BOP split: parallel over images, one
+//! [`label_dataset`] runs over a BOP split: parallel over images (a sample of each scene's
+//! first, which sets each object's early stop: see `LabelOptions::good_score`), one
 //! `scene_pseudo_gt.json` per scene written atomically, finished scenes skipped on a rerun,
 //! `--shard i/n` for job arrays. Ground-truth poses are never read: from `scene_gt.json` only
 //! each instance's `obj_id` (or `obj_id` given for datasets without it). An instance that cannot
