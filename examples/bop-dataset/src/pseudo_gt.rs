@@ -19,7 +19,8 @@ use crate::json::{
 pub struct PseudoLabel {
     /// Model→camera pose (metres).
     pub pose: Isometry3<f64>,
-    /// Render-and-compare discrepancy (metres, lower is better).
+    /// Render-and-compare score: the mean per-pixel depth difference in units of the sensor's
+    /// expected error (lower is better; about 0.8 for the true pose on the sensor's noise).
     pub score: f64,
 }
 

@@ -2,8 +2,8 @@
 //!
 //! A trial scoring under `good_score` ends the search for an instance's first label: on the
 //! sensor's noise alone the true pose scores about 0.83. An object whose true poses score
-//! higher (a scan's thin walls, a banana's curved silhouette: a mug's score 0.83–0.96 over
-//! its views) would search on almost every instance for a better pose that is not there.
+//! higher (the YCB mug scan's score 0.83–0.96 over its views) would search on almost every
+//! instance for a better pose that is not there.
 //! So [`crate::label_dataset`] labels a sample of each scene's images first
 //! ([`split_sample`]: [`SAMPLE_IMAGES`] spread evenly), with the options as given, and
 //! raises each object's early stop for the rest of the scene to the upper fence of the
