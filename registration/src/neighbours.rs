@@ -229,18 +229,21 @@ mod tests {
         }
     }
 
+    /// Half the extents of the box of [`box_surface`] and [`box_normal`]: 6 × 4 × 2 cm.
+    const BOX_HALF: [f32; 3] = [0.03, 0.02, 0.01];
+
     /// Points on the surface of a 6 × 4 × 2 cm box (ICP's model clouds are surfaces), with a
     /// few exact duplicates, whose distances tie.
     fn box_surface(rng: &mut ChaCha8Rng, count: usize) -> Vec<Point3<f32>> {
-        let half = [0.03f32, 0.02, 0.01];
         let mut points: Vec<Point3<f32>> = (0..count)
             .map(|_| {
-                let mut p: [f32; 3] = std::array::from_fn(|k| rng.random_range(-half[k]..half[k]));
+                let mut p: [f32; 3] =
+                    std::array::from_fn(|k| rng.random_range(-BOX_HALF[k]..BOX_HALF[k]));
                 let face = rng.random_range(0..3usize);
                 p[face] = if rng.random() {
-                    half[face]
+                    BOX_HALF[face]
                 } else {
-                    -half[face]
+                    -BOX_HALF[face]
                 };
                 Point3::from(p)
             })
@@ -320,9 +323,8 @@ mod tests {
 
     /// The normal of a point of [`box_surface`]: that of the face it lies on.
     fn box_normal(p: &Point3<f32>) -> [f32; 3] {
-        let half = [0.03f32, 0.02, 0.01];
         let face = (0..3)
-            .min_by(|&a, &b| (half[a] - p[a].abs()).total_cmp(&(half[b] - p[b].abs())))
+            .min_by(|&a, &b| (BOX_HALF[a] - p[a].abs()).total_cmp(&(BOX_HALF[b] - p[b].abs())))
             .expect("three axes");
         std::array::from_fn(|k| if k == face { p[k].signum() } else { 0.0 })
     }
