@@ -48,14 +48,12 @@ pub(crate) fn split_sample(ids: &[u32]) -> (Vec<u32>, Vec<u32>) {
 pub(crate) fn upper_fence(scores: &[f64]) -> Option<f64> {
     let mut sorted = scores.to_vec();
     sorted.sort_by(f64::total_cmp);
+    let last = sorted.len().checked_sub(1)?;
     let quantile = |p: f64| {
-        let at = p * (sorted.len() - 1) as f64;
+        let at = p * last as f64;
         let (below, above) = (at.floor() as usize, at.ceil() as usize);
         sorted[below] + (at - below as f64) * (sorted[above] - sorted[below])
     };
-    if sorted.is_empty() {
-        return None;
-    }
     let (q1, q3) = (quantile(0.25), quantile(0.75));
     Some(q3 + 1.5 * (q3 - q1))
 }
