@@ -154,11 +154,6 @@ impl Preset {
                 eval_level: 4,
                 occlusion: vec![true],
                 blur: 1.5,
-                // Its two models, one after the other on every thread: side by side on one thread
-                // each, the rotation model's 128 epochs would leave a core idle once the
-                // translation model's 32 are done (measured per epoch: 3.0 s on one thread, 1.85
-                // s on two).
-                concurrent_models: 1,
                 ..base
             },
             Self::Paper => Plan {

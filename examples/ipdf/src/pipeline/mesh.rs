@@ -255,7 +255,7 @@ fn label_renders(out: &Path, data: &Path, plan: &Plan, seed: u64) -> Result<Labe
 }
 
 /// Stage 3: the rotation model in `model` (each member of its ensemble) and its translation
-/// model, `plan.concurrent_models` at a time (the presets: one after the other).
+/// model, side by side.
 fn train_pose(data: &Path, model: &Path, plan: &Plan, seed: u64) -> Result<(), Error> {
     let rotation = TrainRequest {
         out: model.to_path_buf(),

@@ -3,13 +3,10 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use crate::Error;
 
-/// Runs `job` on every item, `workers` at a time on threads of their own, libtorch's threads
-/// shared out evenly among the threads running (`threads / min(workers, items)`, at least one;
-/// `workers` ≤ 1: in turn, libtorch's threads unchanged). The share is fixed for the whole call:
-/// an item taken as others finish gets no more, since MKL's thread count is process-wide and the
-/// models still training would take the extra threads too (two small models on more threads than
-/// cores trained 3–4 times slower). Callers hand out the longest items first. Stops taking new
-/// items after the first error, which it returns.
+/// Runs `job` on every item, `workers` at a time on threads of their own, each with one
+/// libtorch thread, or more once fewer items are left than workers (`workers` ≤ 1: in turn,
+/// libtorch's threads unchanged). Stops taking new items after the first error, which it
+/// returns.
 pub fn on_threads<T: Sync>(
     items: &[T],
     workers: usize,
@@ -19,15 +16,15 @@ pub fn on_threads<T: Sync>(
         return items.iter().try_for_each(job);
     }
     let threads = tch::get_num_threads();
-    let share = (threads / workers.min(items.len()).max(1) as i32).max(1);
     let next = AtomicUsize::new(0);
     let work = || -> Result<(), Error> {
-        tch::set_num_threads(share);
         loop {
             let index = next.fetch_add(1, Ordering::Relaxed);
             let Some(item) = items.get(index) else {
                 return Ok(());
             };
+            let running = (items.len() - index).min(workers) as i32;
+            tch::set_num_threads((threads / running).max(1));
             job(item).inspect_err(|_| next.store(items.len(), Ordering::Relaxed))?;
         }
     };
@@ -119,24 +116,6 @@ mod tests {
                 "{workers} workers: {started:?}"
             );
         }
-    }
-
-    #[test]
-    fn each_item_gets_an_even_share_of_the_threads_for_the_whole_call() {
-        let before = tch::get_num_threads();
-        tch::set_num_threads(4);
-        for (workers, items, expected) in [(2, 9, 2), (4, 9, 1), (3, 9, 1), (2, 1, 4), (8, 2, 2)] {
-            let seen = Mutex::new(Vec::new());
-            let list: Vec<usize> = (0..items).collect();
-            on_threads(&list, workers, |_| {
-                seen.lock().unwrap().push(tch::get_num_threads());
-                Ok(())
-            })
-            .unwrap();
-            let seen = seen.into_inner().unwrap();
-            assert_eq!(seen, vec![expected; items], "{workers} workers, {items} items");
-        }
-        tch::set_num_threads(before);
     }
 
     #[test]
