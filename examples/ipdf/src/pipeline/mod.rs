@@ -312,7 +312,7 @@ fn model_runs(out: &Path, plan: &Plan) -> Vec<ModelRun> {
 }
 
 /// Stage 3: trains the models not trained yet (each member of a rotation model's ensemble),
-/// `plan.concurrent_models` at a time.
+/// `plan.concurrent_models` at a time, those of the most steps first.
 fn train_models(out: &Path, plan: &Plan, runs: &[ModelRun], seed: u64) -> Result<(), Error> {
     let data = data_dir(out, Variant::Uniform);
     let mut pending = Vec::new();
@@ -336,6 +336,9 @@ fn train_models(out: &Path, plan: &Plan, runs: &[ModelRun], seed: u64) -> Result
             }
         }
     }
+    // The longest first, so that the last ones to finish are short: the demo's translation
+    // models take half a rotation model's steps.
+    pending.sort_by_key(|(_, request)| std::cmp::Reverse(plan.total_steps(request.target)));
     on_threads(&pending, plan.concurrent_models, |(run, request)| {
         eprintln!(
             "pipeline: training {}'s {} on {} labels{}",

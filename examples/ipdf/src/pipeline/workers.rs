@@ -3,10 +3,13 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use crate::Error;
 
-/// Runs `job` on every item, `workers` at a time on threads of their own, each with one
-/// libtorch thread, or more once fewer items are left than workers (`workers` ≤ 1: in turn,
-/// libtorch's threads unchanged). Stops taking new items after the first error, which it
-/// returns.
+/// Runs `job` on every item, `workers` at a time on threads of their own (`workers` ≤ 1: in
+/// turn, libtorch's threads unchanged), each with an even share of libtorch's threads. Where
+/// the items are no more than the workers, all start at once and the threads of the workers
+/// left without an item go to the last ones. Where there are more, a worker that takes one of
+/// the last items keeps its share: the others still train, and a larger share would put more
+/// threads to work than there are cores (the demo's last translation model trained 4 times
+/// slower so). Stops taking new items after the first error, which it returns.
 pub fn on_threads<T: Sync>(
     items: &[T],
     workers: usize,
@@ -23,8 +26,7 @@ pub fn on_threads<T: Sync>(
             let Some(item) = items.get(index) else {
                 return Ok(());
             };
-            let running = (items.len() - index).min(workers) as i32;
-            tch::set_num_threads((threads / running).max(1));
+            tch::set_num_threads((threads / share_of(items.len(), workers, index)).max(1));
             job(item).inspect_err(|_| next.store(items.len(), Ordering::Relaxed))?;
         }
     };
@@ -42,6 +44,16 @@ pub fn on_threads<T: Sync>(
     // libtorch's thread count is partly process-wide (MKL's): put it back for what follows.
     tch::set_num_threads(threads);
     outcomes.into_iter().collect()
+}
+
+/// How many workers share libtorch's threads while item `index` of `items` trains.
+fn share_of(items: usize, workers: usize, index: usize) -> i32 {
+    let sharing = if items > workers {
+        workers
+    } else {
+        items - index
+    };
+    sharing.max(1) as i32
 }
 
 #[cfg(test)]
@@ -116,6 +128,23 @@ mod tests {
                 "{workers} workers: {started:?}"
             );
         }
+    }
+
+    #[test]
+    fn shares_are_even_unless_every_item_starts_at_once() {
+        // More items than workers: an even share to the end.
+        assert!((0..15).all(|i| share_of(15, 2, i) == 2));
+        assert!((0..7).all(|i| share_of(7, 3, i) == 3));
+        // All at once: the last items take the idle workers' threads.
+        assert_eq!(
+            (0..2).map(|i| share_of(2, 2, i)).collect::<Vec<_>>(),
+            [2, 1]
+        );
+        assert_eq!(
+            (0..2).map(|i| share_of(2, 4, i)).collect::<Vec<_>>(),
+            [2, 1]
+        );
+        assert_eq!(share_of(1, 2, 0), 1);
     }
 
     #[test]
