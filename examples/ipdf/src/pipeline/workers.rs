@@ -4,12 +4,14 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use crate::Error;
 
 /// Runs `job` on every item, `workers` at a time on threads of their own (`workers` ≤ 1: in
-/// turn, libtorch's threads unchanged), each with an even share of libtorch's threads. Where
-/// the items are no more than the workers, all start at once and the threads of the workers
-/// left without an item go to the last ones. Where there are more, a worker that takes one of
-/// the last items keeps its share: the others still train, and a larger share would put more
-/// threads to work than there are cores (the demo's last translation model trained 4 times
-/// slower so). Stops taking new items after the first error, which it returns.
+/// turn, libtorch's threads unchanged). Where there are more items than workers, each worker
+/// keeps an even share of libtorch's threads to the end: a worker that took one of the last
+/// items with a larger share would put more threads to work than there are cores while the
+/// others still train (the demo's last translation model once trained 4 times slower so).
+/// Where there are no more, all start at once, item `i` of `n` with `1 / (n − i)` of the
+/// threads: the mesh preset's translation model all of them beside its rotation model, which
+/// trains faster once the translation model is done (docs/performance.md). Stops taking new
+/// items after the first error, which it returns.
 pub fn on_threads<T: Sync>(
     items: &[T],
     workers: usize,
