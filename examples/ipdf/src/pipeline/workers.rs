@@ -137,7 +137,7 @@ mod tests {
         // More items than workers: an even share to the end.
         assert!((0..15).all(|i| share_of(15, 2, i) == 2));
         assert!((0..7).all(|i| share_of(7, 3, i) == 3));
-        // All at once: the last items take the idle workers' threads.
+        // All at once: item i of n gets 1/(n − i) of the threads, the last all of them.
         assert_eq!(
             (0..2).map(|i| share_of(2, 2, i)).collect::<Vec<_>>(),
             [2, 1]
