@@ -90,10 +90,11 @@ impl PointIndex {
     /// turned away from the camera, aligned to a view; a grid's queries more than a few cells
     /// from the model. Against kiddo's nearest-one search, then the radius, the bounded search
     /// took point-to-plane ICP of a model onto a view from 33.3 to 14.7 ms and `register` from
-    /// 55.3 to 39.3 ms, and the demo's label stage by a tenth, with the same labels; on queries
-    /// 2.5 mm from the surface, with a radius of 7.5 mm, it is 2.7× slower (243 against 91 ns per
-    /// query): the grid answers those (`cargo bench -p benches --bench registration --
-    /// 'icp_point_to_plane|register/|nearest_within'`).
+    /// 55.3 to 39.3 ms, and cut a tenth off the demo's label stage, with the same labels
+    /// (`cargo bench -p benches --bench registration --
+    /// 'icp_point_to_plane|register/|nearest_within'`). On queries all 2.5 mm from the points,
+    /// with a radius of 7.5 mm, it is 2.7× slower (243 against 91 ns per query): a grid answers
+    /// those where there is one.
     pub fn nearest_within_radius(&self, query: &[f32; 3], radius: f32) -> Option<Neighbour> {
         if let Some(grid) = &self.grid
             && let GridAnswer::Found(found) = grid.nearest(query, radius)
