@@ -106,15 +106,7 @@ impl PointIndex {
         }
         let tree = self.tree.as_ref()?;
         if radius.is_finite() {
-            let found = tree
-                .query(query)
-                .nearest_n::<SquaredEuclidean<f32>>(NonZeroUsize::MIN)
-                .within(radius * radius)
-                .execute();
-            return found.first().map(|n| Neighbour {
-                index: n.item,
-                distance_squared: n.distance,
-            });
+            return nearest_n_within(tree, query, radius, NonZeroUsize::MIN).next();
         }
         let found = tree
             .query(query)
@@ -173,16 +165,27 @@ impl PointIndex {
         let Some(tree) = self.tree.as_ref() else {
             return;
         };
-        let found = tree
-            .query(query)
-            .nearest_n::<SquaredEuclidean<f32>>(max_neighbours)
-            .within(radius * radius)
-            .execute();
-        out.extend(found.into_iter().map(|n| Neighbour {
+        out.extend(nearest_n_within(tree, query, radius, max_neighbours));
+    }
+}
+
+/// kiddo's search for the `max_neighbours` nearest entries within `radius` of `query`, bounded
+/// by the radius, nearest first.
+fn nearest_n_within(
+    tree: &ImmutableKdTree<f32, 3>,
+    query: &[f32; 3],
+    radius: f32,
+    max_neighbours: NonZeroUsize,
+) -> impl Iterator<Item = Neighbour> {
+    tree.query(query)
+        .nearest_n::<SquaredEuclidean<f32>>(max_neighbours)
+        .within(radius * radius)
+        .execute()
+        .into_iter()
+        .map(|n| Neighbour {
             index: n.item,
             distance_squared: n.distance,
-        }));
-    }
+        })
 }
 
 /// Working space of [`PointIndex::nearest_agreeing`], kept between queries.
