@@ -219,6 +219,23 @@ impl CellGrid {
         Ok((i, &self.candidates[from..to]))
     }
 
+    /// An upper bound on the distance from `query` to its nearest point, anywhere (inside the
+    /// grid or out): its distance to the centre of the grid's cell nearest to it, plus that
+    /// centre's distance to its nearest point. NaN for a query with a NaN coordinate.
+    pub(crate) fn nearest_bound(&self, query: &[f32; 3]) -> f32 {
+        let at: [usize; 3] = std::array::from_fn(|k| {
+            let c = ((query[k] - self.origin[k]) / self.cell).floor();
+            // A NaN casts to 0; the bound below is NaN all the same.
+            c.clamp(0.0, (self.dims[k] - 1) as f32) as usize
+        });
+        let centre: [f32; 3] =
+            std::array::from_fn(|k| self.origin[k] + (at[k] as f32 + 0.5) * self.cell);
+        let i = (at[2] * self.dims[1] + at[1]) * self.dims[0] + at[0];
+        // `clearance` is the centre's nearest distance less the half-diagonal and a sliver.
+        let closest = self.clearance[i] + (0.5 * 3f32.sqrt() + 2e-3) * self.cell;
+        distance_squared(query, &centre).sqrt() + closest
+    }
+
     /// The index of the cell holding `query`, `None` outside the grid.
     fn cell_of(&self, query: &[f32; 3]) -> Option<usize> {
         let mut at = [0usize; 3];
@@ -231,5 +248,55 @@ impl CellGrid {
             at[k] = c as usize;
         }
         Some((at[2] * self.dims[1] + at[1]) * self.dims[0] + at[0])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    use super::*;
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(24))]
+
+        /// `nearest_bound` is at least the distance to the nearest point (a brute force's), for
+        /// queries near the points, in the grid's margin and far outside it; inside the grid at
+        /// most that distance plus the cell's diagonal (the triangle inequality through the
+        /// cell's centre).
+        #[test]
+        fn nearest_bound_holds(
+            seed in 0u64..1_000_000,
+            count in 64usize..2000,
+            spread in proptest::sample::select(vec![0.001f32, 0.01, 0.1, 1.0]),
+        ) {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            // Points on a sphere of 5 cm: a surface, as ICP's clouds are.
+            let points: Vec<[f32; 3]> = (0..count)
+                .map(|_| {
+                    let v: [f32; 3] = std::array::from_fn(|_| rng.random_range(-1.0f32..1.0));
+                    let norm = distance_squared(&v, &[0.0; 3]).sqrt().max(1e-6);
+                    v.map(|x| 0.05 * x / norm)
+                })
+                .collect();
+            let tree = ImmutableKdTree::new_from_slice(&points).expect("points");
+            let grid = CellGrid::new(&points, &tree).expect("a grid");
+            for _ in 0..200 {
+                let base = points[rng.random_range(0..points.len())];
+                let query = base.map(|x| x + rng.random_range(-spread..spread));
+                let truth = points
+                    .iter()
+                    .map(|p| distance_squared(p, &query))
+                    .fold(f32::INFINITY, f32::min)
+                    .sqrt();
+                let bound = grid.nearest_bound(&query);
+                proptest::prop_assert!(bound >= truth, "bound {bound} under {truth}");
+                if grid.cell_of(&query).is_some() {
+                    let most = truth + (3f32.sqrt() + 0.01) * grid.cell;
+                    proptest::prop_assert!(bound <= most, "bound {bound} over {most}");
+                }
+            }
+        }
     }
 }
