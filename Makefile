@@ -65,4 +65,6 @@ bench-python: $(BENCH_VENV)/.ready $(BENCH_VENV)/.ready-open3d $(BENCH_VENV)/.re
 	$(CARGO) run --release -p ipdf --example registration_trials -- --out runs/bench/registration --repeat 3
 	$(BENCH_VENV)/bin/python benches/python/open3d_registration.py runs/bench/registration --repeat 3 \
 		--json runs/bench/open3d_registration.json
+	$(BENCH_VENV)/bin/python benches/python/open3d_registration.py runs/bench/registration --repeat 3 \
+		--global ransac --json runs/bench/open3d_registration_ransac.json
 	$(BENCH_VENV)/bin/python benches/python/ipdf_train_step.py --json runs/bench/pytorch_train_step.json

@@ -21,21 +21,26 @@ Pipeline, v = voxel_size, for source (model) and target alike:
 then per trial:
 4. `registration_fgr_based_on_feature_matching(model_down, target_down, model_fpfh,
    target_fpfh, FastGlobalRegistrationOption(maximum_correspondence_distance=0.5v))`;
-5. `registration_icp(model_down, target_down, 1.5v, init=fgr.transformation,
+   with `--global ransac` instead `registration_ransac_based_on_feature_matching(model_down,
+   target_down, model_fpfh, target_fpfh, mutual_filter, 1.5v,
+   TransformationEstimationPointToPoint(False), 3, [CorrespondenceCheckerBasedOnEdgeLength(0.9),
+   CorrespondenceCheckerBasedOnDistance(1.5v)], RANSACConvergenceCriteria(100000, 0.999))`,
+   the settings of Open3D's tutorial, `mutual_filter` False unless `--mutual` (the tutorial's);
+5. `registration_icp(model_down, target_down, 1.5v, init=<step 4's>.transformation,
    TransformationEstimationPointToPlane(), ICPConvergenceCriteria(max_iteration=30))`.
 
 Open3D 0.20 notes:
 - `FastGlobalRegistrationOption` has no `seed` argument. FGR's only randomness (the tuple
-  test's sampling) draws from Open3D's global generator, so `o3d.utility.random.seed(S + i)` is
-  called right before trial i's FGR (S = `--seed`, default 0): runs and repeats are repeatable.
+  test's sampling), like RANSAC's, draws from Open3D's global generator, so
+  `o3d.utility.random.seed(S + i)` is called right before trial i's step 4 (S = `--seed`, default 0): runs and repeats are repeatable.
 - With the option's default `use_absolute_scale=False` (kept, as in the tutorial), FGR works on
   clouds centred and scaled to unit radius, and `maximum_correspondence_distance` is only the
   floor of its graduated non-convexity parameter in those normalised units; it is used in
   meters only for the fitness/RMSE that FGR's own result reports.
 
 Timing (`time.perf_counter`, ms): `model_features` = steps 1-3 on the model, done once and
-reused by all trials; per trial `target_features` = steps 1-3 on the target, `fgr` = step 4,
-`icp` = step 5, and `per_trial` = their sum. Loading the PLY files is not timed. With
+reused by all trials; per trial `target_features` = steps 1-3 on the target, `fgr` = step 4
+(RANSAC's with `--global ransac`), `icp` = step 5, and `per_trial` = their sum. Loading the PLY files is not timed. With
 `--repeat K` the whole trial loop (model preprocessing included) runs K times and each trial
 keeps its per-stage minimum over the K runs; accuracy is taken from the first run. Medians and
 means are over trials (`model_features`: the minimum over the K runs, so median = mean).
@@ -45,7 +50,8 @@ R_est^T R_true, arccos((trace - 1) / 2), clipped) <= success.rotation_deg and tr
 |t_est - t_true| <= success.translation_m.
 
 Run: `.venv-bench/bin/python benches/python/open3d_registration.py TRIALS_DIR [--threads N]
-[--repeat K] [--limit N] [--seed S] [--json runs/bench/open3d_registration.json]`.
+[--repeat K] [--limit N] [--seed S] [--global fgr|ransac [--mutual]]
+[--json runs/bench/open3d_registration.json]`.
 `--threads` (default: os.cpu_count()) sets OMP_NUM_THREADS before open3d is imported.
 """
 import argparse
@@ -74,10 +80,18 @@ def parse_args():
     parser.add_argument("--model-normals", choices=["consistent", "arbitrary"], default="consistent",
                         help="orient the model's normals consistently and outward (as ipdf-rs "
                              "does), or leave Open3D's arbitrary signs (as the tutorial does)")
+    parser.add_argument("--global", dest="global_stage", choices=["fgr", "ransac"], default="fgr",
+                        help="step 4's global registration: Fast Global Registration, or RANSAC "
+                             "on feature matches (Open3D's tutorial settings)")
+    parser.add_argument("--mutual", action="store_true",
+                        help="with --global ransac: keep mutual nearest feature matches only "
+                             "(the tutorial's mutual_filter=True)")
     parser.add_argument("--json", metavar="PATH", help="also write the results as JSON")
     args = parser.parse_args()
     if args.threads < 1 or args.repeat < 1 or (args.limit is not None and args.limit < 0):
         parser.error("--threads and --repeat must be >= 1, --limit >= 0")
+    if args.mutual and args.global_stage != "ransac":
+        parser.error("--mutual applies to --global ransac only")
     return args
 
 
@@ -120,6 +134,17 @@ def main():
     normal_param = o3d.geometry.KDTreeSearchParamHybrid(radius=2.0 * v, max_nn=30)
     fpfh_param = o3d.geometry.KDTreeSearchParamHybrid(radius=5.0 * v, max_nn=100)
     fgr_option = reg.FastGlobalRegistrationOption(maximum_correspondence_distance=0.5 * v)
+    ransac_checkers = [reg.CorrespondenceCheckerBasedOnEdgeLength(0.9),
+                       reg.CorrespondenceCheckerBasedOnDistance(1.5 * v)]
+    ransac_criteria = reg.RANSACConvergenceCriteria(100000, 0.999)
+
+    def global_alignment(model_down, target_down, model_fpfh, target_fpfh):
+        if args.global_stage == "fgr":
+            return reg.registration_fgr_based_on_feature_matching(
+                model_down, target_down, model_fpfh, target_fpfh, fgr_option)
+        return reg.registration_ransac_based_on_feature_matching(
+            model_down, target_down, model_fpfh, target_fpfh, args.mutual, 1.5 * v,
+            reg.TransformationEstimationPointToPoint(False), 3, ransac_checkers, ransac_criteria)
     icp_criteria = reg.ICPConvergenceCriteria(max_iteration=30)
     point_to_plane = reg.TransformationEstimationPointToPlane()
 
@@ -152,10 +177,9 @@ def main():
             t1 = time.perf_counter()
             o3d.utility.random.seed(args.seed + i)
             t2 = time.perf_counter()
-            fgr = reg.registration_fgr_based_on_feature_matching(
-                model_down, target_down, model_fpfh, target_fpfh, fgr_option)
+            coarse = global_alignment(model_down, target_down, model_fpfh, target_fpfh)
             t3 = time.perf_counter()
-            icp = reg.registration_icp(model_down, target_down, 1.5 * v, fgr.transformation,
+            icp = reg.registration_icp(model_down, target_down, 1.5 * v, coarse.transformation,
                                        point_to_plane, icp_criteria)
             t4 = time.perf_counter()
             for stage, dt in zip(STAGES, (t1 - t0, t3 - t2, t4 - t3)):
@@ -190,7 +214,9 @@ def main():
     successes = sum(row["success"] for row in per_trial)
     success_rate = successes / len(per_trial)
 
-    print(f"Open3D {o3d.__version__} FPFH + FGR + point-to-plane ICP, threads {args.threads}, "
+    stage4 = "FGR" if args.global_stage == "fgr" else (
+        "RANSAC (mutual matches)" if args.mutual else "RANSAC")
+    print(f"Open3D {o3d.__version__} FPFH + {stage4} + point-to-plane ICP, threads {args.threads}, "
           f"voxel {v} m, {len(per_trial)} trials, repeat {args.repeat}, "
           f"model {len(model.points)} -> {model_points_down} points")
     print(f"{'stage':<18} {'median ms':>10} {'mean ms':>10}")
@@ -213,6 +239,8 @@ def main():
             "open3d_version": o3d.__version__,
             "threads": args.threads,
             "model_normals": args.model_normals,
+            "global": args.global_stage,
+            "mutual": args.mutual,
             "voxel_size": v,
             "trials": len(per_trial),
             "success_rate": success_rate,
