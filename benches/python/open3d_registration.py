@@ -32,7 +32,8 @@ then per trial:
 Open3D 0.20 notes:
 - `FastGlobalRegistrationOption` has no `seed` argument. FGR's only randomness (the tuple
   test's sampling), like RANSAC's, draws from Open3D's global generator, so
-  `o3d.utility.random.seed(S + i)` is called right before trial i's step 4 (S = `--seed`, default 0): runs and repeats are repeatable.
+  `o3d.utility.random.seed(S + i)` is called right before trial i's step 4 (S = `--seed`,
+  default 0): runs and repeats are repeatable.
 - With the option's default `use_absolute_scale=False` (kept, as in the tutorial), FGR works on
   clouds centred and scaled to unit radius, and `maximum_correspondence_distance` is only the
   floor of its graduated non-convexity parameter in those normalised units; it is used in
@@ -40,10 +41,11 @@ Open3D 0.20 notes:
 
 Timing (`time.perf_counter`, ms): `model_features` = steps 1-3 on the model, done once and
 reused by all trials; per trial `target_features` = steps 1-3 on the target, `fgr` = step 4
-(RANSAC's with `--global ransac`), `icp` = step 5, and `per_trial` = their sum. Loading the PLY files is not timed. With
-`--repeat K` the whole trial loop (model preprocessing included) runs K times and each trial
-keeps its per-stage minimum over the K runs; accuracy is taken from the first run. Medians and
-means are over trials (`model_features`: the minimum over the K runs, so median = mean).
+(RANSAC's with `--global ransac`), `icp` = step 5, and `per_trial` = their sum. Loading the PLY
+files is not timed. With `--repeat K` the whole trial loop (model preprocessing included) runs
+K times and each trial keeps its per-stage minimum over the K runs; accuracy is taken from the
+first run. Medians and means are over trials (`model_features`: the minimum over the K runs, so
+median = mean).
 
 Success of a trial: rotation error of the ICP result against the truth (angle of
 R_est^T R_true, arccos((trace - 1) / 2), clipped) <= success.rotation_deg and translation error
@@ -80,7 +82,8 @@ def parse_args():
     parser.add_argument("--model-normals", choices=["consistent", "arbitrary"], default="consistent",
                         help="orient the model's normals consistently and outward (as ipdf-rs "
                              "does), or leave Open3D's arbitrary signs (as the tutorial does)")
-    parser.add_argument("--global", dest="global_stage", choices=["fgr", "ransac"], default="fgr",
+    parser.add_argument("--global", dest="global_stage", choices=["fgr", "ransac"],
+                        default="fgr",
                         help="step 4's global registration: Fast Global Registration, or RANSAC "
                              "on feature matches (Open3D's tutorial settings)")
     parser.add_argument("--mutual", action="store_true",
