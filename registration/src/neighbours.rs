@@ -82,12 +82,12 @@ impl PointIndex {
 
     /// The nearest entry within `radius` of `query` (inclusive), if any.
     ///
-    /// The grid's answer where it has one; otherwise kiddo's search bounded by the radius
-    /// (`nearest_n(1).within(r²)`), which prunes every branch farther than the radius, or
-    /// its nearest-one search, faster where a point lies within the radius, where the radius
-    /// is infinite or the grid shows such a point (a query's distance to a cell's centre plus
-    /// that centre's nearest distance within the radius: ICP's wide first radii, and the
-    /// search for a model's self-symmetries).
+    /// The grid's answer where it has one. Otherwise kiddo's search bounded by the radius
+    /// (`nearest_n(1).within(r²)`), which prunes every branch farther than the radius; or its
+    /// nearest-one search, which is faster where a point does lie within the radius: where the
+    /// radius is infinite, or where the grid shows such a point (the query's distance to a
+    /// cell's centre, plus that centre's nearest distance, is within the radius: ICP's wide
+    /// first radii, a model's self-symmetry search).
     ///
     /// ICP's queries that reach the tree are often far from every point: points of the model
     /// turned away from the camera, aligned to a view; a grid's queries more than a few cells
