@@ -12,8 +12,9 @@
 # `real_frames.json`; each object's run stays in OUT/obj_N, and a rerun resumes each where it
 # stopped. PRESET (quick) chooses the preset; FRAMES, VAL_FRAMES, EPOCHS and STEPS override its
 # training frames, validation frames, epochs (translation: EPOCHS too) and steps per epoch;
-# PIPELINE_ARGS are added to each run (e.g. "--randomize none": plain renders); IPDF names the
-# binary (target/release/ipdf).
+# PIPELINE_ARGS are added to each run (e.g. "--randomize none": plain renders); SEED (0) is each
+# run's seed (renders, labels and training all draw from it); IPDF names the binary
+# (target/release/ipdf).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${1:-runs/real-frames}
@@ -42,7 +43,7 @@ EOF2
 for id in "${OBJECTS[@]}"; do
     run="$OUT/obj_$id"
     mesh=$(printf "%s/models/obj_%06d.ply" "$FIXTURE" "$id")
-    "$IPDF" pipeline --mesh "$mesh" --camera "$OUT/camera.json" --out "$run" "${OVERRIDES[@]}" \
+    "$IPDF" --seed "${SEED:-0}" pipeline --mesh "$mesh" --camera "$OUT/camera.json" --out "$run" "${OVERRIDES[@]}" \
         --real "$FIXTURE" --obj-id "$id" --json >/dev/null
     echo "obj $id: $(python3 -c "import json,sys; r=json.load(open(sys.argv[1])); a=r['real']['accuracy']; print(f\"Acc@15 {a['acc_15']:.2f}, median rotation error {a['median_rotation_error_deg']:.1f}°, median translation error {a['median_translation_error_mm']:.1f} mm, {sum(r['timing_s'].values()) / 60:.1f} min\")" "$run/report.json")"
 done
