@@ -43,8 +43,8 @@ EOF2
 for id in "${OBJECTS[@]}"; do
     run="$OUT/obj_$id"
     mesh=$(printf "%s/models/obj_%06d.ply" "$FIXTURE" "$id")
-    "$IPDF" --seed "${SEED:-0}" pipeline --mesh "$mesh" --camera "$OUT/camera.json" --out "$run" "${OVERRIDES[@]}" \
-        --real "$FIXTURE" --obj-id "$id" --json >/dev/null
+    "$IPDF" --seed "${SEED:-0}" pipeline --mesh "$mesh" --camera "$OUT/camera.json" --out "$run" \
+        "${OVERRIDES[@]}" --real "$FIXTURE" --obj-id "$id" --json >/dev/null
     echo "obj $id: $(python3 -c "import json,sys; r=json.load(open(sys.argv[1])); a=r['real']['accuracy']; print(f\"Acc@15 {a['acc_15']:.2f}, median rotation error {a['median_rotation_error_deg']:.1f}°, median translation error {a['median_translation_error_mm']:.1f} mm, {sum(r['timing_s'].values()) / 60:.1f} min\")" "$run/report.json")"
 done
 # One table of every instance, the object id beside it.
