@@ -111,5 +111,7 @@ pub use fit::{EpochReport, FitOptions, FitTarget, TRAIN_LOG, fit};
 pub use kernels::{REPRODUCIBLE_CPU_KERNELS, kernel_settings, missing_kernel_settings};
 pub use optim::LearningRateSchedule;
 pub use pretrained::{load_backbone, load_translation_backbone};
-pub use refine::{CellHierarchy, CellMasses, RefineOptions, So3Cells, refine, refine_on};
+pub use refine::{
+    CellHierarchy, CellMasses, HeaviestBall, RefineOptions, So3Cells, refine, refine_on,
+};
 pub use step::StepReport;

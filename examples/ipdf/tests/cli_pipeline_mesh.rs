@@ -162,15 +162,14 @@ fn a_mesh_run_is_scored_on_the_real_frames() {
     assert_eq!(member["model"]["rotation_frame"], "line-of-sight");
     let named = read_json(&out.join("model/ensemble.json"));
     assert_eq!(named["members"], json!(["member-2"]));
-    // The real frames' scores say they are the two models', in JSON and in the table's heading.
+    // The real frames' scores say they are the two models' and name the rotation estimate,
+    // in JSON and in the table's heading.
     assert_eq!(report["real"]["members"], 2);
     let table = std::fs::read_to_string(out.join("eval_real.md")).unwrap();
     assert!(
-        table
-            .lines()
-            .next()
-            .unwrap()
-            .ends_with("an ensemble of 2 rotation models"),
+        table.lines().next().unwrap().ends_with(
+            "an ensemble of 2 rotation models, each rotation the centre of its heaviest 15° ball"
+        ),
         "{table}"
     );
     // Every real instance of the object is scored, and only those.
@@ -190,6 +189,9 @@ fn a_mesh_run_is_scored_on_the_real_frames() {
     assert_eq!(expected.len(), 2);
     assert_eq!(scored, expected, "{real}");
     assert_eq!(real["obj_id"], OBJ_ID);
+    // Both scored with the mesh pipeline's estimate: the heaviest 15° ball's centre.
+    assert_eq!(real["ball_deg"], 15.0);
+    assert_eq!(report["renders"]["ball_deg"], 15.0);
     for row in real["instances"].as_array().unwrap() {
         let error = row["rotation_error_deg"].as_f64().unwrap();
         let mm = row["translation_error_mm"].as_f64().unwrap();

@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 use common::{
     BRIEF_TRAINING, SMALL_NETWORK, assert_fails, copy_dir, ipdf_json, predict_args, read_json, s,
 };
+use nalgebra::{Matrix3, Quaternion, UnitQuaternion};
 use serde_json::Value;
 
 /// The fixture's folder.
@@ -201,6 +202,50 @@ fn real_frames_are_scored_per_instance_from_their_boxes_as_from_masks_filling_th
     };
     let with_box = ipdf_json(&common::strs(&predict_box(&bbox, &out("b.npy"))));
     assert_eq!(with_box, with_mask);
+
+    // --ball 15: predict gives the centre of the heaviest 15° ball beside the argmax, and eval
+    // scores it as the estimate (both on level 2 refined to 4): its error is its angle to the
+    // published rotation (the can has no symmetry).
+    let mask = masks.join("000003_000001.png");
+    let ball_args = ["--level", "1", "--ball", "15"];
+    let balled = ipdf_json(&predict_args(
+        &run,
+        &rgb,
+        &mask,
+        &out("ball.npy"),
+        &ball_args,
+    ));
+    let ball = &balled["heaviest_ball"];
+    assert_eq!(ball["radius_deg"], 15.0, "{balled}");
+    assert!((1e-9..=1.0 + 1e-9).contains(&ball["mass"].as_f64().unwrap()));
+    assert_eq!(balled["argmax"], with_mask["argmax"]);
+    let scored = ipdf_json(&eval_args(&run, &root, &["--level", "4", "--ball", "15"]));
+    assert_eq!(scored["ball_deg"], 15.0);
+    let q: Vec<f64> = (0..4)
+        .map(|i| ball["quaternion_wxyz"][i].as_f64().unwrap())
+        .collect();
+    let estimate = UnitQuaternion::from_quaternion(Quaternion::new(q[0], q[1], q[2], q[3]));
+    let r: Vec<f64> = (0..9)
+        .map(|i| {
+            read_json(&scene(&root).join("scene_gt.json"))["3"][1]["cam_R_m2c"][i]
+                .as_f64()
+                .unwrap()
+        })
+        .collect();
+    let truth = UnitQuaternion::from_matrix(&Matrix3::from_row_slice(&r));
+    let error = scored["instances"][0]["rotation_error_deg"]
+        .as_f64()
+        .unwrap();
+    assert!(
+        (estimate.angle_to(&truth).to_degrees() - error).abs() < 0.01,
+        "{error}"
+    );
+    let bad_out = out("bad.npy");
+    for bad in ["0", "181", "nan"] {
+        assert_fails(&eval_args(&run, &root, &["--ball", bad]), "--ball");
+        let args = predict_args(&run, &rgb, &mask, &bad_out, &["--ball", bad]);
+        assert_fails(&args, "--ball");
+    }
     assert_eq!(
         std::fs::read(out("b.npy")).unwrap(),
         std::fs::read(out("m.npy")).unwrap()

@@ -14,6 +14,7 @@ use bop_dataset::{
 };
 use depth_render::{PinholeCamera, Scene, SensorPreset, TriangleMesh, load_mesh};
 use ipdf::depth_fit::{MIN_PIXELS, fit_translation, pose_from_depth};
+use ipdf::eval::rotation::BALL_CANDIDATES;
 use ipdf::eval::translation::{
     self, is_translation_run, pose_translation_dir, pose_translation_model,
 };
@@ -72,6 +73,11 @@ pub struct PredictArgs {
     /// the mesh pipeline scores with).
     #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=8))]
     pub views: u8,
+    /// Also give the centre of the ball of this many degrees holding the most probability
+    /// (`"heaviest_ball"`: the rotation most likely within that angle of the truth, the mesh
+    /// pipeline's estimate at 15; the argmax is where one peak rises highest).
+    #[arg(long)]
+    pub ball: Option<f64>,
     /// Grid level of the rotation distribution (4: 294,912 rotations).
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(0..=5))]
     pub level: u8,
@@ -87,7 +93,8 @@ pub struct PredictArgs {
 
 /// Runs `ipdf predict`; returns `{"argmax": {"quaternion_wxyz", "cam_R_m2c", "cam_t_m2c",
 /// "fitted_cam_t_m2c", "score"}, "level", "cells", "cell_turn_wxyz",
-/// "densest": [{"quaternion_wxyz", "probability"}, …],
+/// "densest": [{"quaternion_wxyz", "probability"}, …], "heaviest_ball": {"quaternion_wxyz",
+/// "cam_R_m2c", "radius_deg", "mass"},
 /// "translation": {"cells", "distribution", "score"}, "refined_with_depth": {"quaternion_wxyz",
 /// "cam_R_m2c", "cam_t_m2c", "hypothesis", "score"}}` with the parts the run's models and the
 /// inputs give.
@@ -98,6 +105,9 @@ pub fn run(args: &PredictArgs) -> Result<Value> {
         "npy",
         "the distribution (a NumPy array; the most likely pose goes beside it as .json)",
     )?;
+    if let Some(ball) = args.ball.filter(|b| !(*b > 0.0 && *b <= 180.0)) {
+        bail!("--ball {ball}: a radius in degrees, over 0 and at most 180");
+    }
     if args.depth.is_some() && args.mask.is_none() {
         bail!("--depth needs --mask: the object's own pixels (a box holds the background too)");
     }
@@ -232,7 +242,7 @@ fn predict_rotation(
             Ok(json!({"quaternion_wxyz": rotation_to_wxyz(&rotation), "probability": masses[i]}))
         })
         .collect::<Result<Vec<_>>>()?;
-    let value = json!({
+    let mut value = json!({
         "argmax": {
             "quaternion_wxyz": rotation_to_wxyz(&most_likely),
             "cam_R_m2c": rotation_to_matrix(&most_likely),
@@ -243,6 +253,16 @@ fn predict_rotation(
         "cell_turn_wxyz": rotation_to_wxyz(turn),
         "densest": densest,
     });
+    if let Some(degrees) = args.ball {
+        let ball = refined.heaviest_ball(degrees.to_radians(), BALL_CANDIDATES)?;
+        let rotation = turn * ball.rotation;
+        value["heaviest_ball"] = json!({
+            "quaternion_wxyz": rotation_to_wxyz(&rotation),
+            "cam_R_m2c": rotation_to_matrix(&rotation),
+            "radius_deg": degrees,
+            "mass": ball.mass,
+        });
+    }
     Ok((value, most_likely, hypotheses))
 }
 

@@ -176,7 +176,7 @@ pub fn score_instances(
     vsd: &[Option<f64>],
     min_visib: f64,
 ) -> Result<(Vec<InstanceScore>, Accuracy), Error> {
-    let rotations = &evaluation.argmax;
+    let rotations = &evaluation.estimates;
     let truth_sets = examples.required_truth_sets()?;
     let truth_poses = examples.required_truth_poses()?;
     let mut rows = Vec::with_capacity(truth_sets.len());

@@ -91,6 +91,10 @@ pub struct EvalRequest {
     /// Test-time views of each crop whose image terms the rotation model averages
     /// ([`ipdf_model::rotation::Predictor::with_views`]; 0: the crop alone, as the paper).
     pub views: usize,
+    /// Each crop's rotation estimate is the centre of the ball of this radius (degrees) that
+    /// holds the most probability ([`ipdf_model::CellMasses::heaviest_ball`]) instead of the
+    /// most likely rotation (`None`, as the paper).
+    pub ball_deg: Option<f64>,
 }
 
 impl EvalRequest {
@@ -113,6 +117,7 @@ impl EvalRequest {
             depth_hypotheses: 0,
             sensor: pseudo_label::LabelOptions::default().sensor,
             views: 0,
+            ball_deg: None,
         }
     }
 
@@ -199,6 +204,10 @@ pub struct EvalResult {
     /// Test-time views averaged per crop beside the crop itself ([`EvalRequest::views`]).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub views: usize,
+    /// The radius (degrees) of the heaviest ball whose centre is each crop's rotation estimate
+    /// ([`EvalRequest::ball_deg`]; not written where the estimate is the most likely rotation).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ball_deg: Option<f64>,
     /// Rotation models whose scores were averaged: the checkpoint's ensemble
     /// ([`ImplicitPdf::load_ensemble`]; 1: one model, and then not written).
     #[serde(default = "one", skip_serializing_if = "is_one")]
@@ -302,7 +311,8 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
     progress.set_total(passes * examples.instances.len() as u64, 0);
     let refine = request.per_instance && request.depth_hypotheses > 0;
     let picks = Picks {
-        argmax: translation_model.is_some() || request.per_instance,
+        estimates: translation_model.is_some() || request.per_instance,
+        ball: request.ball_deg.map(f64::to_radians),
         hypotheses: if refine { request.depth_hypotheses } else { 0 },
         hypothesis_spacing: HYPOTHESIS_SPACING_DEG.to_radians(),
     };
@@ -315,7 +325,7 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
             let object = ObjectModel::load(&dataset, info.obj_id)?;
             let pose = evaluate_pose(
                 &examples,
-                &evaluation.argmax,
+                &evaluation.estimates,
                 &translations,
                 &object,
                 (scores.llh, translation.llh),
@@ -329,7 +339,7 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
             Some((translations, _)) => {
                 let estimates: Vec<Isometry3<f64>> = translations
                     .iter()
-                    .zip(&evaluation.argmax)
+                    .zip(&evaluation.estimates)
                     .map(|(t, r)| Isometry3::from_parts((*t).into(), *r))
                     .collect();
                 surface::depth_fitted_translations(
@@ -347,7 +357,7 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
             object,
             fitted: &fitted,
         });
-        let most_likely: Vec<_> = evaluation.argmax.iter().copied().map(Some).collect();
+        let most_likely: Vec<_> = evaluation.estimates.iter().copied().map(Some).collect();
         let vsd = surface::rotation_vsd(
             &dataset,
             &request.split,
@@ -415,6 +425,7 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
         }
         .into(),
         views: request.views,
+        ball_deg: request.ball_deg,
         members: models.len(),
         queries_per_image: scores.queries_per_image,
         images: scores.images,
@@ -462,13 +473,17 @@ pub fn eval_file(run_dir: &Path, level: u8) -> PathBuf {
 
 impl EvalResult {
     /// `what` scored, as the heading of the per-instance table: naming the ensemble when the
-    /// scores average several rotation models.
+    /// scores average several rotation models, and the rotation estimate when it is not the
+    /// argmax.
     pub fn heading(&self, what: &str) -> String {
+        let mut heading = what.to_string();
         if self.members > 1 {
-            format!("{what}, an ensemble of {} rotation models", self.members)
-        } else {
-            what.to_string()
+            heading += &format!(", an ensemble of {} rotation models", self.members);
         }
+        if let Some(degrees) = self.ball_deg {
+            heading += &format!(", each rotation the centre of its heaviest {degrees}° ball");
+        }
+        heading
     }
 }
 

@@ -59,27 +59,39 @@ pub struct RotationEvaluation {
     pub maad_deg: Vec<f64>,
     /// Each crop's Recall MAAD, degrees.
     pub recall_maad_deg: Vec<f64>,
-    /// Each crop's most likely rotation, in the camera's frame (empty unless asked for).
-    pub argmax: Vec<UnitQuaternion<f64>>,
+    /// Each crop's rotation estimate ([`Picks::ball`]), in the camera's frame (empty unless
+    /// asked for).
+    pub estimates: Vec<UnitQuaternion<f64>>,
     /// Each crop's rotation hypotheses, the most likely first, in the camera's frame (empty
     /// unless asked for; [`ipdf_model::CellMasses::rotation_hypotheses`]).
     pub hypotheses: Vec<Vec<UnitQuaternion<f64>>>,
 }
 
+/// The cells [`Picks::ball`] centres its ball on: the densest 512, about two 15° balls of
+/// level-4 cells (one holds about 280). On the real YCB-Video objects' models every cell as a
+/// candidate picked the same rotations (docs/results.md, "The heaviest ball").
+pub const BALL_CANDIDATES: usize = 512;
+
 /// Which rotations [`evaluate_rotations`] picks from each crop's distribution beside its scores.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Picks {
-    /// The most likely rotation.
-    pub argmax: bool,
-    /// This many rotation hypotheses (0: none; they start at the most likely rotation)…
+    /// The rotation estimate: the most likely rotation, or with [`Picks::ball`] the centre of
+    /// the heaviest ball.
+    pub estimates: bool,
+    /// In place of the most likely rotation, the centre of the ball of this radius (radians)
+    /// holding the most probability ([`CellMasses::heaviest_ball`], among the
+    /// [`BALL_CANDIDATES`] densest cells).
+    pub ball: Option<f64>,
+    /// This many rotation hypotheses (0: none; they start at the estimate)…
     pub hypotheses: usize,
     /// …at least this far apart (radians).
     pub hypothesis_spacing: f64,
 }
 
 /// [`evaluate`], with each crop's LLH, MAAD and Recall MAAD, and the rotations `picks` asks
-/// for: each crop's most likely rotation ([`Predictor::argmax_from`] on the same distribution),
-/// its rotation hypotheses. `models` are one model or the members of an ensemble
+/// for: each crop's rotation estimate (its most likely rotation, [`Predictor::argmax_from`] on
+/// the same distribution, or its heaviest ball's centre), its rotation hypotheses (starting at
+/// the estimate). `models` are one model or the members of an ensemble
 /// ([`Predictor::ensemble`], [`ImplicitPdf::load_ensemble`]). Each crop's image term is
 /// computed once, averaged over the crop and `views` test-time views of it
 /// ([`Predictor::with_views`]). A model in the line of sight's frame is scored against the
@@ -118,16 +130,21 @@ pub fn evaluate_rotations(
         recall_maad_deg.push(recall_maad(&distribution, truth, RECALL_THRESHOLD)?);
         sum_under += predictor.under_resolution_for(&image_term, &masses)?;
         queries = queries.max(masses.queries);
-        if picks.argmax || picks.hypotheses > 0 {
-            let best = predictor
-                .argmax_from(&image_term, &masses, &argmax_options)?
-                .rotation;
+        if picks.estimates || picks.hypotheses > 0 {
+            let best = match picks.ball {
+                Some(radius) => masses.heaviest_ball(radius, BALL_CANDIDATES)?.rotation,
+                None => {
+                    predictor
+                        .argmax_from(&image_term, &masses, &argmax_options)?
+                        .rotation
+                }
+            };
             if picks.hypotheses > 0 {
                 let picked =
                     masses.rotation_hypotheses(best, picks.hypotheses, picks.hypothesis_spacing)?;
                 hypotheses.push(picked.iter().map(|h| turn * h).collect());
             }
-            if picks.argmax {
+            if picks.estimates {
                 rotations.push(turn * best);
             }
         }
@@ -148,7 +165,7 @@ pub fn evaluate_rotations(
         llh,
         maad_deg,
         recall_maad_deg,
-        argmax: rotations,
+        estimates: rotations,
         hypotheses,
     })
 }
@@ -266,7 +283,8 @@ mod tests {
             repairs: Default::default(),
         };
         let picks = Picks {
-            argmax: true,
+            estimates: true,
+            ball: None,
             hypotheses: 3,
             hypothesis_spacing: 0.5,
         };
@@ -284,8 +302,8 @@ mod tests {
             }
         }
         for (i, turn) in turns.iter().enumerate() {
-            let expected = turn * by_hand.argmax[i];
-            assert!(scored.argmax[i].angle_to(&expected) < 1e-9, "crop {i}");
+            let expected = turn * by_hand.estimates[i];
+            assert!(scored.estimates[i].angle_to(&expected) < 1e-9, "crop {i}");
             for (h, g) in scored.hypotheses[i].iter().zip(&by_hand.hypotheses[i]) {
                 assert!(h.angle_to(&(turn * g)) < 1e-9, "crop {i}");
             }
