@@ -558,6 +558,17 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
+    /// Masses on every cell of `level` in proportion to `weights` (one per cell).
+    fn masses_on(level: u8, weights: &[f64]) -> CellMasses {
+        let total: f64 = weights.iter().sum::<f64>() + 1e-9;
+        CellMasses {
+            cells: (0..weights.len() as u64).map(|i| (level, i)).collect(),
+            masses: weights.iter().map(|w| w / total).collect(),
+            queries: weights.len(),
+            log_normaliser: 0.0,
+        }
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(24))]
         /// The hypotheses start at the given rotation, lie at least the angle apart, and leave
@@ -572,13 +583,7 @@ mod tests {
             degrees in 10.0..90.0f64,
         ) {
             let grid = Grid::new(1).unwrap();
-            let total: f64 = weights.iter().sum::<f64>() + 1e-9;
-            let masses = CellMasses {
-                cells: (0..576).map(|i| (1, i)).collect(),
-                masses: weights.iter().map(|w| w / total).collect(),
-                queries: 576,
-                log_normaliser: 0.0,
-            };
+            let masses = masses_on(1, &weights);
             let first = grid.rotation(first_cell).unwrap();
             let angle = degrees.to_radians();
             let found = masses.rotation_hypotheses(first, count, angle).unwrap();
@@ -614,13 +619,7 @@ mod tests {
             candidates in 1usize..64,
         ) {
             let grid = Grid::new(1).unwrap();
-            let total: f64 = weights.iter().sum::<f64>() + 1e-9;
-            let masses = CellMasses {
-                cells: (0..576).map(|i| (1, i)).collect(),
-                masses: weights.iter().map(|w| w / total).collect(),
-                queries: 576,
-                log_normaliser: 0.0,
-            };
+            let masses = masses_on(1, &weights);
             let radius = degrees.to_radians();
             let centres: Vec<_> = (0..576).map(|i| grid.rotation(i).unwrap()).collect();
             let ball_mass = |c: &UnitQuaternion<f64>| -> f64 {
@@ -668,13 +667,7 @@ mod tests {
         for &i in &mode {
             weights[i as usize] = 0.6 / mode.len() as f64;
         }
-        let total: f64 = weights.iter().sum();
-        let masses = CellMasses {
-            cells: (0..n).map(|i| (3, i)).collect(),
-            masses: weights.iter().map(|w| w / total).collect(),
-            queries: n as usize,
-            log_normaliser: 0.0,
-        };
+        let masses = masses_on(3, &weights);
         assert_eq!(masses.densest(1), vec![spike_cell as usize]);
         let ball = masses.heaviest_ball(15f64.to_radians(), 64).unwrap();
         assert!(geodesic_distance(&ball.rotation, &wide) < 12f64.to_radians());

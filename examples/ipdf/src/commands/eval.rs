@@ -61,7 +61,7 @@ pub struct EvalArgs {
     #[arg(long, default_value = "gt", value_parser = choice::<Truth>())]
     pub truth: Truth,
     /// Beside the models' own, score a pose found from this many of the rotation model's
-    /// hypotheses (its most likely rotation, then its densest cells 30° apart) and each frame's
+    /// hypotheses (its rotation estimate, then its densest cells 30° apart) and each frame's
     /// depth inside the instance's visible mask: each placed on the masked points, refined by
     /// ICP and scored by render-and-compare, the depth choosing among them where it can tell
     /// them apart and the image where it cannot (0: off; 8 is the mesh pipeline's).

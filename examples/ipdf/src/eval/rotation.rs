@@ -62,7 +62,7 @@ pub struct RotationEvaluation {
     /// Each crop's rotation estimate ([`Picks::ball`]), in the camera's frame (empty unless
     /// asked for).
     pub estimates: Vec<UnitQuaternion<f64>>,
-    /// Each crop's rotation hypotheses, the most likely first, in the camera's frame (empty
+    /// Each crop's rotation hypotheses, its estimate first, in the camera's frame (empty
     /// unless asked for; [`ipdf_model::CellMasses::rotation_hypotheses`]).
     pub hypotheses: Vec<Vec<UnitQuaternion<f64>>>,
 }
