@@ -92,9 +92,7 @@ pub fn run(args: &EvalArgs) -> Result<serde_json::Value> {
     if !(0.0..=1.0).contains(&args.min_visib) {
         bail!("--min-visib {}: a visible fraction, 0 to 1", args.min_visib);
     }
-    if let Some(ball) = args.ball.filter(|b| !(*b > 0.0 && *b <= 180.0)) {
-        bail!("--ball {ball}: a radius in degrees, over 0 and at most 180");
-    }
+    super::check_ball(args.ball)?;
     let request = EvalRequest {
         dataset: args.dataset.clone(),
         models_dir: args.models_dir.clone(),

@@ -40,6 +40,14 @@ pub fn check_distance(near: f64, far: f64) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Refuses a `--ball DEG` that is not a radius over 0° and at most 180°.
+pub fn check_ball(ball: Option<f64>) -> anyhow::Result<()> {
+    if let Some(ball) = ball.filter(|b| !(*b > 0.0 && *b <= 180.0)) {
+        anyhow::bail!("--ball {ball}: a radius in degrees, over 0 and at most 180");
+    }
+    Ok(())
+}
+
 /// The object of a `--mesh` file in `scale` metres per unit, its repairs warned about, one of
 /// an implausible size (a `--mesh-scale` mistake) refused.
 pub fn load_mesh(path: &std::path::Path, scale: f64) -> anyhow::Result<synth_data::SynthObject> {

@@ -105,9 +105,7 @@ pub fn run(args: &PredictArgs) -> Result<Value> {
         "npy",
         "the distribution (a NumPy array; the most likely pose goes beside it as .json)",
     )?;
-    if let Some(ball) = args.ball.filter(|b| !(*b > 0.0 && *b <= 180.0)) {
-        bail!("--ball {ball}: a radius in degrees, over 0 and at most 180");
-    }
+    super::check_ball(args.ball)?;
     if args.depth.is_some() && args.mask.is_none() {
         bail!("--depth needs --mask: the object's own pixels (a box holds the background too)");
     }
