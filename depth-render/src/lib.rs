@@ -75,7 +75,7 @@ pub use compare::{depth_discrepancy, pixel_discrepancies, unproject, visible_sur
 pub use error::RenderError;
 pub use mask_errors::MaskErrors;
 pub use mesh::{TriangleMesh, bounding_box, max_distance};
-pub use mesh_io::{LoadedMesh, Vertices, load_mesh, load_vertices, write_ply};
+pub use mesh_io::{LoadedMesh, Vertices, load_mesh, load_vertices, write_mesh_ply_to, write_ply};
 pub use mesh_repair::MeshRepairs;
 pub use mesh_scale::{PLAUSIBLE_SIZE_M, check_mesh_size};
 pub use render::{Instance, NO_TRIANGLE, Rendering, Scene, Window};

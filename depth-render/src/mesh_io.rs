@@ -220,19 +220,75 @@ pub fn write_ply(
     triangles: &[[u32; 3]],
     scale: f32,
 ) -> std::io::Result<()> {
-    if normals.is_some_and(|n| n.len() != positions.len()) {
+    let columns = PlyColumns {
+        positions,
+        normals,
+        colors: None,
+        uvs: None,
+    };
+    write_ply_columns(out, &columns, triangles, scale, None)
+}
+
+/// Writes `mesh` as [`write_ply`] does, with its vertex colours (`uchar red green blue`) and
+/// texture coordinates (`float texture_u texture_v`) where it has them, and `comment
+/// TextureFile {texture}` where a texture image is named (BOP's textured models; what
+/// [`load_mesh`] reads back).
+pub fn write_mesh_ply_to(
+    out: &mut impl Write,
+    mesh: &TriangleMesh,
+    scale: f32,
+    texture: Option<&str>,
+) -> std::io::Result<()> {
+    let columns = PlyColumns {
+        positions: mesh.positions(),
+        normals: mesh.normals(),
+        colors: mesh.colors(),
+        uvs: mesh.uvs(),
+    };
+    write_ply_columns(out, &columns, mesh.triangles(), scale, texture)
+}
+
+/// The per-vertex columns [`write_ply_columns`] writes.
+struct PlyColumns<'a> {
+    positions: &'a [Point3<f32>],
+    normals: Option<&'a [Vector3<f32>]>,
+    colors: Option<&'a [[f32; 3]]>,
+    uvs: Option<&'a [[f32; 2]]>,
+}
+
+fn write_ply_columns(
+    out: &mut impl Write,
+    columns: &PlyColumns,
+    triangles: &[[u32; 3]],
+    scale: f32,
+    texture: Option<&str>,
+) -> std::io::Result<()> {
+    let count = columns.positions.len();
+    let lengths = [
+        columns.normals.map(<[_]>::len),
+        columns.colors.map(<[_]>::len),
+        columns.uvs.map(<[_]>::len),
+    ];
+    if lengths.into_iter().flatten().any(|n| n != count) {
         return Err(std::io::Error::new(
             std::io::ErrorKind::InvalidInput,
-            "one normal per vertex expected",
+            "one normal, colour and texture coordinate per vertex expected",
         ));
     }
-    let mut header = format!(
-        "ply\nformat binary_little_endian 1.0\ncomment ipdf-rs\nelement vertex {}\n\
-         property float x\nproperty float y\nproperty float z\n",
-        positions.len()
-    );
-    if normals.is_some() {
+    let mut header = String::from("ply\nformat binary_little_endian 1.0\ncomment ipdf-rs\n");
+    if let Some(texture) = texture {
+        header += &format!("comment TextureFile {texture}\n");
+    }
+    header +=
+        &format!("element vertex {count}\nproperty float x\nproperty float y\nproperty float z\n");
+    if columns.normals.is_some() {
         header += "property float nx\nproperty float ny\nproperty float nz\n";
+    }
+    if columns.colors.is_some() {
+        header += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+    }
+    if columns.uvs.is_some() {
+        header += "property float texture_u\nproperty float texture_v\n";
     }
     if !triangles.is_empty() {
         header += &format!(
@@ -242,12 +298,20 @@ pub fn write_ply(
     }
     header += "end_header\n";
     out.write_all(header.as_bytes())?;
-    for (i, p) in positions.iter().enumerate() {
+    for (i, p) in columns.positions.iter().enumerate() {
         for v in (p.coords * scale).iter() {
             out.write_all(&v.to_le_bytes())?;
         }
-        if let Some(normals) = normals {
+        if let Some(normals) = columns.normals {
             for v in normals[i].iter() {
+                out.write_all(&v.to_le_bytes())?;
+            }
+        }
+        if let Some(colors) = columns.colors {
+            out.write_all(&colors[i].map(|c| (c * 255.0).round().clamp(0.0, 255.0) as u8))?;
+        }
+        if let Some(uvs) = columns.uvs {
+            for v in uvs[i] {
                 out.write_all(&v.to_le_bytes())?;
             }
         }

@@ -65,6 +65,19 @@ impl ImageTexture {
         })
     }
 
+    /// Columns and rows.
+    pub fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
+    /// The texels as 8-bit RGB, row-major, top row first (as [`ImageTexture::new`] takes them).
+    pub fn to_rgb8(&self) -> Vec<[u8; 3]> {
+        self.texels
+            .iter()
+            .map(|t| t.map(|c| (c * 255.0).round().clamp(0.0, 255.0) as u8))
+            .collect()
+    }
+
     /// The colour at texture coordinates `(u, v)`.
     pub fn sample(&self, u: f32, v: f32) -> [f32; 3] {
         let x = u.rem_euclid(1.0) * self.width as f32 - 0.5;

@@ -423,3 +423,44 @@ fn malformed_vertex_files_name_the_field() {
     let message = load_vertices(&path, 1.0).unwrap_err().to_string();
     assert!(message.contains("vertex: missing"), "{message}");
 }
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(24))]
+
+    /// A mesh written with its vertex colours, texture coordinates and texture image's name
+    /// loads with the same geometry, the same colours (8-bit levels), the same texture
+    /// coordinates and the image named beside the file.
+    #[test]
+    fn colours_and_texture_coordinates_round_trip(
+        levels in proptest::collection::vec(proptest::prelude::any::<[u8; 3]>(), 64),
+        uvs in proptest::collection::vec([0.0f32..1.0, 0.0f32..1.0], 64),
+        textured in proptest::prelude::any::<bool>(),
+    ) {
+        use depth_render::{Primitive, write_mesh_ply_to};
+        let can = Primitive::Cylinder { radius: 0.05, height: 0.1, segments: 5 }.mesh().unwrap();
+        let n = can.positions().len();
+        proptest::prop_assume!(n <= levels.len());
+        let colours: Vec<[f32; 3]> =
+            levels[..n].iter().map(|c| c.map(|l| f32::from(l) / 255.0)).collect();
+        let mesh = can
+            .with_colors(colours.clone())
+            .unwrap()
+            .with_uvs(uvs[..n].to_vec())
+            .unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("can.ply");
+        let texture = textured.then_some("can.png");
+        let mut bytes = Vec::new();
+        write_mesh_ply_to(&mut bytes, &mesh, 1e3, texture).unwrap();
+        std::fs::write(&path, bytes).unwrap();
+        let loaded = load_mesh(&path, 1e-3).unwrap();
+        let back = &loaded.mesh;
+        proptest::prop_assert_eq!(back.triangles(), mesh.triangles());
+        for (a, b) in back.positions().iter().zip(mesh.positions()) {
+            proptest::prop_assert!((a - b).norm() < 1e-6);
+        }
+        proptest::prop_assert_eq!(back.colors().unwrap(), &colours[..]);
+        proptest::prop_assert_eq!(back.uvs().unwrap(), &uvs[..n]);
+        proptest::prop_assert_eq!(loaded.texture, texture.map(|t| dir.path().join(t)));
+    }
+}

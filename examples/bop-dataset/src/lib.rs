@@ -71,7 +71,10 @@ pub use json::{
     BopCamera, Intrinsics, camera_from_json, pose_from_json, pose_to_json, read_json, read_json_as,
 };
 pub use layout::{BopDataset, SceneDir, copy_dataset};
-pub use models::{ModelInfo, read_models_info, write_mesh_ply, write_models_info};
+pub use models::{
+    ModelInfo, mesh_appearance, read_models_info, write_coloured_mesh_ply, write_mesh_ply,
+    write_models_info,
+};
 pub use progress::Progress;
 pub use pseudo_gt::{PseudoInstance, PseudoLabel, read_pseudo_gt, write_pseudo_gt};
 pub use recorded::{as_recorded, check_recorded};

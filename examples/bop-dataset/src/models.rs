@@ -2,7 +2,7 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use depth_render::TriangleMesh;
+use depth_render::{ImageTexture, LoadedMesh, Material, TriangleMesh};
 use ipdf_metrics::SymmetryGroup;
 use serde_json::{Value, json};
 
@@ -124,10 +124,55 @@ pub fn write_models_info(path: &Path, models: &BTreeMap<u32, ModelInfo>) -> Resu
     write_json_by_id(path, &entries)
 }
 
+/// How the mesh file `path`, loaded as `loaded`, colours its surface: its texture image where
+/// it names one ([`Material::Image`]), else its vertex colours where it has them, else `None`.
+/// A texture image the file names but that cannot be read is refused, naming it.
+pub fn mesh_appearance(path: &Path, loaded: &LoadedMesh) -> Result<Option<Material>, FileError> {
+    Ok(match &loaded.texture {
+        Some(texture) => Some(Material::Image(read_texture(path, texture)?)),
+        None => loaded.mesh.colors().map(|_| Material::VertexColors),
+    })
+}
+
+/// The texture image `texture` that the mesh file `mesh` names.
+fn read_texture(mesh: &Path, texture: &Path) -> Result<ImageTexture, FileError> {
+    let image = crate::read_rgb(texture)
+        .map_err(|e| FileError::new(mesh, "TextureFile", format!("{}: {e}", texture.display())))?;
+    let texels = image
+        .pixels
+        .iter()
+        .map(|p| p.map(|c| f32::from(c) / 255.0))
+        .collect();
+    ImageTexture::new(image.width as usize, image.height as usize, texels)
+        .map_err(|e| FileError::new(mesh, "TextureFile", e.to_string()))
+}
+
 /// Writes `mesh` (metres) as a binary little-endian PLY in millimetres (BOP's model format:
-/// `x y z nx ny nz` per vertex when it has normals, `vertex_indices` per face), atomically.
+/// `x y z nx ny nz` per vertex when it has normals, its colours `red green blue` and texture
+/// coordinates `texture_u texture_v` when it has them, `vertex_indices` per face), atomically.
 pub fn write_mesh_ply(path: &Path, mesh: &TriangleMesh) -> Result<(), FileError> {
     write_atomically(path, |out| {
-        depth_render::write_ply(out, mesh.positions(), mesh.normals(), mesh.triangles(), 1e3)
+        depth_render::write_mesh_ply_to(out, mesh, 1e3, None)
+    })
+}
+
+/// Writes `mesh` as [`write_mesh_ply`] does, coloured as `appearance` says where the file can
+/// hold it: an image texture is written beside the mesh (`{stem}.png`, named by the PLY's
+/// `comment TextureFile`, as BOP's textured models), vertex colours are in the PLY; what
+/// [`mesh_appearance`] reads back. Other materials are not written.
+pub fn write_coloured_mesh_ply(
+    path: &Path,
+    mesh: &TriangleMesh,
+    appearance: Option<&Material>,
+) -> Result<(), FileError> {
+    let Some(Material::Image(texture)) = appearance.filter(|_| mesh.uvs().is_some()) else {
+        return write_mesh_ply(path, mesh);
+    };
+    let image = path.with_extension("png");
+    let (width, height) = texture.size();
+    crate::write_rgb(&image, &texture.to_rgb8(), width as u32, height as u32)?;
+    let name = image.file_name().map(|n| n.to_string_lossy().into_owned());
+    write_atomically(path, |out| {
+        depth_render::write_mesh_ply_to(out, mesh, 1e3, name.as_deref())
     })
 }

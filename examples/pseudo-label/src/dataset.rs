@@ -7,8 +7,8 @@ use rayon::prelude::*;
 
 use bop_dataset::{
     BopDataset, FileError, Intrinsics, Progress, PseudoInstance, PseudoLabel, SceneDir,
-    as_recorded, check_recorded, read_depth, read_mask, read_object_ids, read_scene_camera,
-    write_json, write_pseudo_gt,
+    as_recorded, check_recorded, mesh_appearance, read_depth, read_mask, read_object_ids, read_rgb,
+    read_scene_camera, write_json, write_pseudo_gt,
 };
 
 use depth_render::SensorPreset;
@@ -81,6 +81,10 @@ pub struct LabelOptions {
     pub arc_labels: usize,
     /// At most this many self-symmetries are used for re-seeding, spread evenly.
     pub max_symmetries: usize,
+    /// Where the mesh has colours and the image colour, labels whose colours match the image
+    /// worse than the best label's by more than this are dropped ([`crate::appearance_match`],
+    /// a correlation; 0: off): what depth cannot tell apart, the print on a box can.
+    pub appearance_margin: f64,
     /// Depth and mask are read at every n-th pixel of every n-th row ([`PixelLattice`]):
     /// the observed cloud is downsampled to voxels of millimetres anyway, and the
     /// render-and-compare score is a mean over the window, so 2 costs a quarter of the rays
@@ -94,7 +98,8 @@ impl Default for LabelOptions {
     /// K = 8 labels, M = 3 trials, re-seeding, voxel 1/40 of the diameter, 20,000 model
     /// samples, a Kinect's expected error as the unit, residuals capped at 3, labels scoring
     /// under 1.3 and within 0.1 of the best, early stop under 0.9, merge within 2°, poses
-    /// every 7.5° along free turns (at most 96 more), 32 symmetries, every other pixel, seed 0.
+    /// every 7.5° along free turns (at most 96 more), 32 symmetries, colours matching within
+    /// 0.2 of the best, every other pixel, seed 0.
     fn default() -> Self {
         Self {
             labels: 8,
@@ -111,11 +116,15 @@ impl Default for LabelOptions {
             arc_step_deg: 7.5,
             arc_labels: 96,
             max_symmetries: 32,
+            appearance_margin: APPEARANCE_MARGIN,
             pixel_stride: 2,
             seed: 0,
         }
     }
 }
+
+/// The default [`LabelOptions::appearance_margin`].
+pub const APPEARANCE_MARGIN: f64 = 0.2;
 
 impl LabelOptions {
     /// These options for depth `ratio` times as noisy as the sensor's ([`crate::noise_ratio`]):
@@ -160,6 +169,12 @@ impl LabelOptions {
         positive("good_score", self.good_score)?;
         if !(self.score_margin.is_finite() && self.score_margin >= 0.0) {
             return Err(LabelError::option("score_margin", "must be at least 0"));
+        }
+        if !(self.appearance_margin.is_finite() && (0.0..=2.0).contains(&self.appearance_margin)) {
+            return Err(LabelError::option(
+                "appearance_margin",
+                "must be 0 (off) to 2",
+            ));
         }
         if !(self.merge_angle_deg.is_finite() && self.merge_angle_deg >= 0.0) {
             return Err(LabelError::option("merge_angle", "must be at least 0"));
@@ -619,12 +634,18 @@ fn load_model(
         return Ok(None);
     }
     let loaded = depth_render::load_mesh(&path, dataset_options.mesh_scale)?;
-    let mesh = loaded.mesh;
-    depth_render::check_mesh_size(&mesh, &path, dataset_options.mesh_scale, "--mesh-scale")?;
+    depth_render::check_mesh_size(
+        &loaded.mesh,
+        &path,
+        dataset_options.mesh_scale,
+        "--mesh-scale",
+    )?;
+    let appearance = mesh_appearance(&path, &loaded)?;
     if !loaded.repairs.is_empty() {
         summary.mesh_repairs.insert(obj_id, loaded.repairs);
     }
-    Ok(Some(Arc::new(ObjectModel::new(obj_id, &mesh, options)?)))
+    let model = ObjectModel::new(obj_id, &loaded.mesh, options)?.with_appearance(appearance);
+    Ok(Some(Arc::new(model)))
 }
 
 /// Every instance of an image failed for the same reason.
@@ -678,6 +699,18 @@ fn label_image(
     // Sampled once per image; each instance samples only its mask.
     let lattice = PixelLattice::new(&camera, options.pixel_stride);
     let sampled_depth = lattice.sample(&depth.pixels, 0.0);
+    // Only where some object is coloured and the image's colour is of the depth's size.
+    let sampled_colour = (options.appearance_margin > 0.0
+        && obj_ids.iter().any(|id| {
+            models
+                .get(id)
+                .and_then(Option::as_ref)
+                .is_some_and(|m| m.appearance.is_some())
+        }))
+    .then(|| read_rgb(&scene.rgb_path(im_id)).ok())
+    .flatten()
+    .filter(|rgb| (rgb.width, rgb.height) == (depth.width, depth.height))
+    .map(|rgb| lattice.sample(&rgb.pixels, [0; 3]));
     obj_ids
         .iter()
         .enumerate()
@@ -703,10 +736,14 @@ fn label_image(
                 return failed_instance(obj_id, &failure);
             }
             let sampled_mask = lattice.sample(&mask.pixels, false);
-            let Some(observation) = Observation::new(lattice.camera, &sampled_depth, &sampled_mask)
+            let Some(mut observation) =
+                Observation::new(lattice.camera, &sampled_depth, &sampled_mask)
             else {
                 return failed_instance(obj_id, &LabelFailure::EmptyMask);
             };
+            if let Some(colour) = &sampled_colour {
+                observation = observation.with_colour(colour);
+            }
             let seed = instance_seed(options.seed, scene.id, im_id, k);
             let found = (job.label)(
                 model,
@@ -892,6 +929,20 @@ mod tests {
                 "outlier_sigmas",
                 LabelOptions {
                     outlier_sigmas: -3.0,
+                    ..LabelOptions::default()
+                },
+            ),
+            (
+                "appearance_margin",
+                LabelOptions {
+                    appearance_margin: -0.2,
+                    ..LabelOptions::default()
+                },
+            ),
+            (
+                "appearance_margin",
+                LabelOptions {
+                    appearance_margin: f64::INFINITY,
                     ..LabelOptions::default()
                 },
             ),

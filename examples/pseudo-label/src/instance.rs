@@ -15,6 +15,7 @@ use registration::{
 };
 use so3_grid::geodesic_distance;
 
+use crate::appearance::keep_by_appearance;
 use crate::arc::{SAME_AXIS, along_free_turns};
 use crate::score::{Acceptance, Comparison, Observation, compare_pose};
 use crate::symmetries::{apart_from_axes, spread, surface_residual};
@@ -848,8 +849,9 @@ fn pose_set(
         score: options.accepted_score(best_score),
         best: best_comparison,
     };
+    let labels = along_free_turns(model, view, observation, options, labels, &acceptance);
     Ok(
-        along_free_turns(model, view, observation, options, labels, &acceptance)
+        keep_by_appearance(model, observation, labels, options.appearance_margin)
             .into_iter()
             .map(|(pose, score)| PseudoLabel { pose, score })
             .collect(),

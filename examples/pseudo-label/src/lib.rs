@@ -48,6 +48,7 @@
 //! }
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
+mod appearance;
 mod arc;
 mod dataset;
 mod early_stop;
@@ -60,6 +61,7 @@ mod score;
 mod seeded;
 pub mod symmetries;
 
+pub use appearance::appearance_match;
 pub use dataset::{
     DatasetOptions, LABEL_OPTIONS_FILE, LabelOptions, LabelSummary, REFERENCE_OPTIONS_FILE, Shard,
     Strategy, label_dataset, reference_dataset,

@@ -1,6 +1,6 @@
 //! Everything about an object that the labelling of its instances reuses: its model cloud with
 //! features, its renderer and its self-symmetries, computed once per object.
-use depth_render::{Scene, TriangleMesh, sample_surface};
+use depth_render::{Material, Scene, TriangleMesh, sample_surface};
 use nalgebra::Isometry3;
 use registration::{NormalOrientation, PointCloud, PrepareOptions, PreparedCloud, prepare_cloud};
 
@@ -31,6 +31,9 @@ pub struct ObjectModel {
     pub symmetry_axes: Vec<SymmetryAxis>,
     /// The mesh, ready to render.
     pub scene: Scene,
+    /// How its surface is coloured (its texture or vertex colours), where the mesh file
+    /// says: what labels are told apart by in a colour image ([`crate::appearance_match`]).
+    pub appearance: Option<Material>,
 }
 
 impl ObjectModel {
@@ -67,7 +70,23 @@ impl ObjectModel {
             principal_turns,
             symmetry_axes: axes.symmetric,
             scene: Scene::new(std::slice::from_ref(mesh)),
+            appearance: None,
         })
+    }
+
+    /// This model coloured as `appearance` (a texture needs the mesh's texture coordinates,
+    /// vertex colours its colours; a material the mesh cannot show is ignored).
+    pub fn with_appearance(self, appearance: Option<Material>) -> Self {
+        let mesh = &self.scene.meshes()[0];
+        let shown = match &appearance {
+            Some(Material::Image(_)) => mesh.uvs().is_some(),
+            Some(Material::VertexColors) => mesh.colors().is_some(),
+            _ => true,
+        };
+        Self {
+            appearance: appearance.filter(|_| shown),
+            ..self
+        }
     }
 }
 

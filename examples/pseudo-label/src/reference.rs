@@ -19,6 +19,9 @@
 //!    of accepted rotations that the search reached is so sampled whole, at the fine grid's
 //!    spacing.
 //!
+//! Last, as in the labeller, poses whose colours match the image clearly worse than the best
+//! matching one are dropped ([`crate::appearance_match`], `LabelOptions::appearance_margin`).
+//!
 //! A holds the accepted poses of the search (ICP's optimum, which a cell's centre may miss by
 //! enough to be refused where the score rises steeply) and one pose per accepted cell: a
 //! discrete symmetry is the cells around its pose that the depth cannot tell from it (a few on
@@ -34,6 +37,7 @@ use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 use so3_grid::{Grid, geodesic_distance};
 
+use crate::appearance::keep_by_appearance;
 use crate::instance::{Candidate, LabelFailure, grid_alignments, place_rotation, prepare_view};
 use crate::score::Acceptance;
 use crate::{LabelError, LabelOptions, ObjectModel, Observation};
@@ -169,12 +173,16 @@ pub fn reference_set(
     };
     let (accepted, cells, truncated) = fill.run(&seeds, &acceptance, reference.max_cells)?;
     let best_score = accepted.iter().fold(best_score, |b, c| b.min(c.1));
-    let mut poses: Vec<PseudoLabel> = seeds
+    let accepted: Vec<Scored> = seeds
         .into_iter()
         .chain(accepted)
         .filter(|c| c.1 <= options.accepted_score(best_score))
-        .map(|(pose, score)| PseudoLabel { pose, score })
         .collect();
+    let mut poses: Vec<PseudoLabel> =
+        keep_by_appearance(model, observation, accepted, options.appearance_margin)
+            .into_iter()
+            .map(|(pose, score)| PseudoLabel { pose, score })
+            .collect();
     poses.sort_by(|a, b| a.score.total_cmp(&b.score));
     Ok(ReferenceSet {
         poses,

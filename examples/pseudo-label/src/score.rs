@@ -7,7 +7,8 @@ use nalgebra::Isometry3;
 
 use bop_dataset::mask_box;
 
-/// An observed instance: the image's depth and the instance's visible mask.
+/// An observed instance: the image's depth and the instance's visible mask, and its colour
+/// image where there is one.
 #[derive(Debug, Clone, Copy)]
 pub struct Observation<'a> {
     /// The camera of the image.
@@ -18,6 +19,9 @@ pub struct Observation<'a> {
     pub mask: &'a [bool],
     /// The pixels compared: the mask's bounding box with a margin.
     pub window: Window,
+    /// The image's 8-bit RGB, row-major, the image's size: what tells apart by colour the
+    /// poses that depth cannot ([`crate::appearance_match`]); `None` without one.
+    pub colour: Option<&'a [[u8; 3]]>,
 }
 
 impl<'a> Observation<'a> {
@@ -38,7 +42,18 @@ impl<'a> Observation<'a> {
             depth,
             mask,
             window,
+            colour: None,
         })
+    }
+
+    /// This observation with the image's colours (`None` when their number is not the
+    /// image's: a colour image of another size cannot be read pixel by pixel with the depth).
+    pub fn with_colour(self, colour: &'a [[u8; 3]]) -> Self {
+        let pixels = self.camera.width as usize * self.camera.height as usize;
+        Self {
+            colour: (colour.len() == pixels).then_some(colour),
+            ..self
+        }
     }
 }
 

@@ -3,8 +3,8 @@
 //! or any mesh file.
 use std::path::Path;
 
-use bop_dataset::{FileError, read_rgb};
-use depth_render::{ImageTexture, Material, MeshRepairs, Primitive, TriangleMesh, load_mesh};
+use bop_dataset::{FileError, mesh_appearance};
+use depth_render::{Material, MeshRepairs, Primitive, TriangleMesh, load_mesh};
 use ipdf_metrics::SymmetryGroup;
 
 /// A built-in object (sizes and symmetries: [`ObjectKind::description`]).
@@ -190,10 +190,7 @@ impl SynthObject {
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| "mesh".into());
-        let appearance = match &loaded.texture {
-            Some(texture) => Some(Material::Image(read_texture(path, texture)?)),
-            None => loaded.mesh.colors().map(|_| Material::VertexColors),
-        };
+        let appearance = mesh_appearance(path, &loaded)?;
         let object = Self {
             name,
             mesh: loaded.mesh,
@@ -203,17 +200,4 @@ impl SynthObject {
         };
         Ok((object, loaded.repairs))
     }
-}
-
-/// The texture image `texture` that the mesh file `mesh` names.
-fn read_texture(mesh: &Path, texture: &Path) -> Result<ImageTexture, FileError> {
-    let image = read_rgb(texture)
-        .map_err(|e| FileError::new(mesh, "TextureFile", format!("{}: {e}", texture.display())))?;
-    let texels = image
-        .pixels
-        .iter()
-        .map(|p| p.map(|c| f32::from(c) / 255.0))
-        .collect();
-    ImageTexture::new(image.width as usize, image.height as usize, texels)
-        .map_err(|e| FileError::new(mesh, "TextureFile", e.to_string()))
 }

@@ -14,7 +14,7 @@ use crate::{Randomization, SynthError, SynthObject};
 use bop_dataset::{
     BopCamera, BopDataset, DatasetInfo, FileError, GtInfo, GtInstance, Intrinsics, ModelInfo,
     Progress, SceneDir, as_recorded, check_recorded, image_file_complete, read_scene_camera,
-    read_scene_gt, read_scene_gt_info, write_json, write_mesh_ply, write_models_info,
+    read_scene_gt, read_scene_gt_info, write_coloured_mesh_ply, write_json, write_models_info,
     write_scene_camera, write_scene_gt, write_scene_gt_info,
 };
 
@@ -231,7 +231,11 @@ fn write_models(
     let mut models = BTreeMap::new();
     for (i, object) in objects.iter().enumerate() {
         let obj_id = i as u32 + 1;
-        write_mesh_ply(&dataset.model_path(obj_id), &object.mesh)?;
+        write_coloured_mesh_ply(
+            &dataset.model_path(obj_id),
+            &object.mesh,
+            object.appearance.as_ref(),
+        )?;
         models.insert(obj_id, ModelInfo::of_mesh(&object.mesh, &object.symmetry));
     }
     write_models_info(&dataset.models_info_path(), &models)?;

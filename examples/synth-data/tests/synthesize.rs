@@ -400,3 +400,42 @@ fn randomised_looks_keep_the_scenes_and_are_reproducible() {
         assert!(colours_around("random", im_id) > 100);
     }
 }
+
+/// The dataset's model keeps the mesh file's colours, so that the labeller can tell apart by
+/// colour the poses that depth cannot: a texture image is written beside it with the source's
+/// texels and named by the model, vertex colours are written in it.
+#[test]
+fn the_written_model_keeps_the_mesh_files_texture_and_vertex_colours() {
+    use depth_render::{Material, load_mesh};
+    let dir = tempfile::tempdir().unwrap();
+    let texels: Vec<[u8; 3]> = (0..16u8).map(|i| [10 * i, 200, 255 - 7 * i]).collect();
+    bop_dataset::write_rgb(&dir.path().join("pattern.png"), &texels, 4, 4).unwrap();
+    let textured = dir.path().join("textured.ply");
+    std::fs::write(&textured, cube_ply("comment TextureFile pattern.png\n", "")).unwrap();
+    let coloured = dir.path().join("coloured.ply");
+    std::fs::write(&coloured, cube_ply("", "255 0 0")).unwrap();
+    for (name, source) in [("textured", &textured), ("coloured", &coloured)] {
+        let (object, _) = SynthObject::from_mesh_file(source, 0.001).unwrap();
+        let dataset = BopDataset::new(&dir.path().join(name));
+        let options = SynthOptions {
+            frames: 1,
+            frames_per_scene: 1,
+            ..SynthOptions::default()
+        };
+        let objects = std::slice::from_ref(&object);
+        synthesize(&dataset, "train", objects, &options, &Recorded::default()).unwrap();
+        let model = dataset.model_path(1);
+        let loaded = load_mesh(&model, 0.001).unwrap();
+        match bop_dataset::mesh_appearance(&model, &loaded).unwrap() {
+            Some(Material::Image(texture)) if name == "textured" => {
+                assert_eq!(texture.size(), (4, 4));
+                assert_eq!(texture.to_rgb8(), texels);
+            }
+            Some(Material::VertexColors) if name == "coloured" => {
+                let colours = loaded.mesh.colors().unwrap();
+                assert!(colours.iter().all(|&c| c == [1.0, 0.0, 0.0]), "{colours:?}");
+            }
+            other => panic!("{name}: {other:?}"),
+        }
+    }
+}

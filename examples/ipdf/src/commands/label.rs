@@ -66,6 +66,11 @@ pub struct LabelArgs {
     /// At most this many poses added along free turns per instance.
     #[arg(long, default_value_t = LabelOptions::default().arc_labels)]
     pub arc_labels: usize,
+    /// Where the mesh has a texture or vertex colours and the image colour, drop labels whose
+    /// colours correlate with the image's worse than the best label's by more than this
+    /// (0: off; a printed box's half turns fit the depth but not its print).
+    #[arg(long, default_value_t = LabelOptions::default().appearance_margin)]
+    pub appearance_margin: f64,
     /// Also find each instance's reference set A, every pose the labels' acceptance rule
     /// accepts, by brute force (slow: seconds to a minute per instance), into
     /// scene_reference_gt.json; --report then scores the labels' completeness and precision
@@ -119,6 +124,7 @@ pub fn run(args: &LabelArgs, seed: u64) -> Result<serde_json::Value> {
         merge_angle_deg: args.merge_angle,
         arc_step_deg: args.arc_step,
         arc_labels: args.arc_labels,
+        appearance_margin: args.appearance_margin,
         pixel_stride: args.pixel_stride,
         seed,
         ..LabelOptions::default()
