@@ -121,11 +121,11 @@ impl ChannelSums {
 /// The best label's [`appearance_match`] must reach this for the colours to tell labels apart:
 /// on the randomised renders of seven textured YCB-Video scans, the true pose matches 0.4–0.9
 /// and its look-alikes −0.3–0.3; on a uniformly coloured object every match is noise near 0.
-pub const MIN_MATCH: f64 = 0.3;
+pub const MIN_APPEARANCE_MATCH: f64 = 0.3;
 
 /// The `labels` (model→camera poses with their depth scores, in order) whose
 /// [`appearance_match`] is within `margin` of the best label's, and those whose match cannot be
-/// computed; all of them where the best match is under [`MIN_MATCH`] or none can be computed
+/// computed; all of them where the best match is under [`MIN_APPEARANCE_MATCH`] or none can be computed
 /// (no colour image, a mesh without colours), or `margin` is 0 (off).
 pub(crate) fn keep_by_appearance(
     model: &ObjectModel,
@@ -145,7 +145,7 @@ pub(crate) fn keep_by_appearance(
         .flatten()
         .copied()
         .fold(f64::NEG_INFINITY, f64::max);
-    if best < MIN_MATCH {
+    if best < MIN_APPEARANCE_MATCH {
         return labels;
     }
     labels

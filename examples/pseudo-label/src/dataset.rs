@@ -83,7 +83,11 @@ pub struct LabelOptions {
     pub max_symmetries: usize,
     /// Where the mesh has colours and the image colour, labels whose colours match the image
     /// worse than the best label's by more than this are dropped ([`crate::appearance_match`],
-    /// a correlation; 0: off): what depth cannot tell apart, the print on a box can.
+    /// a correlation; 0: off, the default; [`APPEARANCE_MARGIN`] the measured choice): what
+    /// depth cannot tell apart, the print on a box can. Off by default because the labels then
+    /// hold only the printed pose where BOP's geometric symmetries (and the scores against
+    /// them) hold its half turns too, and the quick preset's models learn the print poorly
+    /// (docs/results.md, "Colour tells printed look-alikes apart").
     pub appearance_margin: f64,
     /// Depth and mask are read at every n-th pixel of every n-th row ([`PixelLattice`]):
     /// the observed cloud is downsampled to voxels of millimetres anyway, and the
@@ -98,8 +102,8 @@ impl Default for LabelOptions {
     /// K = 8 labels, M = 3 trials, re-seeding, voxel 1/40 of the diameter, 20,000 model
     /// samples, a Kinect's expected error as the unit, residuals capped at 3, labels scoring
     /// under 1.3 and within 0.1 of the best, early stop under 0.9, merge within 2°, poses
-    /// every 7.5° along free turns (at most 96 more), 32 symmetries, colours matching within
-    /// 0.2 of the best, every other pixel, seed 0.
+    /// every 7.5° along free turns (at most 96 more), 32 symmetries, colours not compared,
+    /// every other pixel, seed 0.
     fn default() -> Self {
         Self {
             labels: 8,
@@ -116,14 +120,15 @@ impl Default for LabelOptions {
             arc_step_deg: 7.5,
             arc_labels: 96,
             max_symmetries: 32,
-            appearance_margin: APPEARANCE_MARGIN,
+            appearance_margin: 0.0,
             pixel_stride: 2,
             seed: 0,
         }
     }
 }
 
-/// The default [`LabelOptions::appearance_margin`].
+/// The [`LabelOptions::appearance_margin`] measured on textured scans' renders (off by
+/// default: see the field).
 pub const APPEARANCE_MARGIN: f64 = 0.2;
 
 impl LabelOptions {

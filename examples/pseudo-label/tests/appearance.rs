@@ -11,7 +11,9 @@ use depth_render::{
 };
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use proptest::prelude::*;
-use pseudo_label::{LabelOptions, ObjectModel, Observation, appearance_match, label_instance};
+use pseudo_label::{
+    APPEARANCE_MARGIN, LabelOptions, ObjectModel, Observation, appearance_match, label_instance,
+};
 use rand::SeedableRng;
 use synth_data::{FrameRenderer, FrameStyle, Randomization, SynthOptions, ViewRange};
 
@@ -107,8 +109,9 @@ fn the_print_drops_a_boxs_half_turns_from_its_labels_and_keeps_its_pose() {
         borrowed_textures: Vec::new(),
     };
     let renderer = FrameRenderer::new(&mesh).unwrap();
-    let off = LabelOptions {
-        appearance_margin: 0.0,
+    let off = LabelOptions::default();
+    let on = LabelOptions {
+        appearance_margin: APPEARANCE_MARGIN,
         ..LabelOptions::default()
     };
     let model = &models().0;
@@ -131,7 +134,7 @@ fn the_print_drops_a_boxs_half_turns_from_its_labels_and_keeps_its_pose() {
         };
         let observation = observation.with_colour(&frame.rgb);
         let without = label_instance(model, &observation, &off, seed).labels;
-        let with = label_instance(model, &observation, &LabelOptions::default(), seed).labels;
+        let with = label_instance(model, &observation, &on, seed).labels;
         let (Ok(without), Ok(with)) = (without, with) else {
             continue;
         };

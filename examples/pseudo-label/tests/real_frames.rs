@@ -291,7 +291,7 @@ fn real_colours_drop_the_half_turns_of_printed_boxes_and_keep_their_poses() {
         label_and_score(&root, &options)
     };
     let without = label("depth", 0.0);
-    let with = label("colour", LabelOptions::default().appearance_margin);
+    let with = label("colour", pseudo_label::APPEARANCE_MARGIN);
     let half_turns = |s: &Scored| s.errors.iter().filter(|e| e.angle > 90.0).count();
     for (before, after) in without.iter().zip(&with) {
         eprintln!(

@@ -42,6 +42,11 @@ pub struct PipelineArgs {
     /// Clean rendered depth instead of a sensor's readings.
     #[arg(long)]
     pub clean_depth: bool,
+    /// Label with the mesh's colours too (`ipdf label --appearance-margin`): labels whose
+    /// colours match the render worse than the best label's by more than this are dropped
+    /// (0, every preset's: off; 0.2 is the measured choice).
+    #[arg(long)]
+    pub appearance_margin: Option<f64>,
     /// Override the preset's epochs (of the translation models too, unless
     /// --translation-epochs is given).
     #[arg(long)]
@@ -153,6 +158,7 @@ fn plan(args: &PipelineArgs, preset: Plan) -> Plan {
             args.sensor.or(preset.sensor)
         },
         epochs: args.epochs.unwrap_or(preset.epochs),
+        appearance_margin: args.appearance_margin.unwrap_or(preset.appearance_margin),
         rotation_frame: args.rotation_frame.unwrap_or(preset.rotation_frame),
         rotation_members: args
             .rotation_members

@@ -80,6 +80,7 @@ impl Preset {
                 eval_level: 5,
                 occlusion: vec![false],
                 blur: 0.0,
+                appearance_margin: 0.0,
                 backbones: vec![],
                 rotation_frame: RotationFrame::Camera,
                 rotation_members: 1,
@@ -105,6 +106,7 @@ impl Preset {
                 eval_level: 5,
                 occlusion: vec![false, true],
                 blur: 0.0,
+                appearance_margin: 0.0,
                 backbones: vec![EncoderKind::Resnet18Stage3, EncoderKind::ConvnextTiny],
                 rotation_frame: RotationFrame::Camera,
                 rotation_members: 1,
@@ -225,6 +227,9 @@ pub struct Plan {
     /// Largest blur of the training crops' augmentation (crop pixels; 0: none).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub blur: f64,
+    /// The labeller's colour margin (`ipdf label --appearance-margin`; 0: off, every preset).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub appearance_margin: f64,
     /// Encoders also trained on pseudo labels (the paper's backbone comparison).
     pub backbones: Vec<EncoderKind>,
     /// The frame the rotation models learn in; the camera's where a run folder records none.

@@ -255,6 +255,7 @@ fn label_split(data: &Path, plan: &Plan, seed: u64) -> Result<(), Error> {
     let options = LabelOptions {
         seed,
         sensor: plan.depth_sensor(),
+        appearance_margin: plan.appearance_margin,
         ..LabelOptions::default()
     };
     let progress = bar(dataset.image_count("train")? as u64, "images");
