@@ -275,6 +275,14 @@ fn the_quick_preset_trains_the_deep_small_cnn_and_the_encoder_flag_overrides_it(
     let plain = setup.recorded_config(&["--encoder", "small-cnn"]);
     assert_eq!(plain["encoder"], "small-cnn");
     assert_eq!(plain["epochs"], 128);
+    // The labeller's colour rule: off unless asked for, and then recorded.
+    assert!(preset.get("appearance_margin").is_none(), "{preset}");
+    let coloured = setup.recorded_config(&["--appearance-margin", "0.2"]);
+    assert_eq!(coloured["appearance_margin"], 0.2);
+    let margin = ipdf(&setup.command(&setup.camera, &["--appearance-margin", "3"]));
+    let stderr = String::from_utf8_lossy(&margin.stderr);
+    assert!(!margin.status.success());
+    assert!(stderr.contains("3: a margin from 0 (off) to 2"), "{stderr}");
     let refused = ipdf(&setup.command(&setup.camera, &["--encoder", "small-cnn-wide"]));
     let stderr = String::from_utf8_lossy(&refused.stderr);
     assert!(!refused.status.success());

@@ -70,7 +70,8 @@ pub struct LabelArgs {
     /// colours correlate with the image's worse than the best label's by more than this
     /// (0: off, the default; 0.2 is the measured choice; a printed box's half turns fit the
     /// depth but not its print).
-    #[arg(long, default_value_t = LabelOptions::default().appearance_margin)]
+    #[arg(long, default_value_t = LabelOptions::default().appearance_margin,
+          value_parser = super::parse_appearance_margin)]
     pub appearance_margin: f64,
     /// Also find each instance's reference set A, every pose the labels' acceptance rule
     /// accepts, by brute force (slow: seconds to a minute per instance), into

@@ -48,6 +48,14 @@ pub fn check_ball(ball: Option<f64>) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// `--appearance-margin`: a correlation margin from 0 (off) to 2, refused before any work.
+pub fn parse_appearance_margin(text: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(margin) if (0.0..=2.0).contains(&margin) => Ok(margin),
+        _ => Err(format!("{text}: a margin from 0 (off) to 2")),
+    }
+}
+
 /// The object of a `--mesh` file in `scale` metres per unit, its repairs warned about, one of
 /// an implausible size (a `--mesh-scale` mistake) refused.
 pub fn load_mesh(path: &std::path::Path, scale: f64) -> anyhow::Result<synth_data::SynthObject> {

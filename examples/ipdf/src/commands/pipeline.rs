@@ -45,7 +45,7 @@ pub struct PipelineArgs {
     /// Label with the mesh's colours too (`ipdf label --appearance-margin`): labels whose
     /// colours match the render worse than the best label's by more than this are dropped
     /// (0, every preset's: off; 0.2 is the measured choice).
-    #[arg(long)]
+    #[arg(long, value_parser = super::parse_appearance_margin)]
     pub appearance_margin: Option<f64>,
     /// Override the preset's epochs (of the translation models too, unless
     /// --translation-epochs is given).
