@@ -58,26 +58,19 @@ pub fn appearance_match(
         )
         .ok()?;
     let window = rendering.window;
-    let (width, height) = (window.width() as usize, window.height() as usize);
-    // The compared pixels' colours, observed and rendered, in the window.
-    let mut pairs: Vec<Option<([f64; 3], [f64; 3])>> = vec![None; width * height];
+    let width = window.width() as usize;
+    let mut sums = [ChannelSums::default(); 3];
     for (i, rendered) in albedo.iter().enumerate() {
-        if rendering.instance[i].is_none() {
-            continue;
-        }
         let (u, v) = (
             window.u0 as usize + i % width,
             window.v0 as usize + i / width,
         );
         let pixel = v * camera.width as usize + u;
-        if observation.mask[pixel] {
-            pairs[i] = Some((colour[pixel].map(f64::from), rendered.map(f64::from)));
+        if rendering.instance[i].is_none() || !observation.mask[pixel] {
+            continue;
         }
-    }
-    let mut sums = [ChannelSums::default(); 3];
-    for (o, r) in pairs.iter().flatten() {
         for (k, sum) in sums.iter_mut().enumerate() {
-            sum.add(o[k], r[k]);
+            sum.add(f64::from(colour[pixel][k]), f64::from(rendered[k]));
         }
     }
     let n = sums[0].n;
@@ -125,8 +118,8 @@ pub const MIN_APPEARANCE_MATCH: f64 = 0.3;
 
 /// The `labels` (model→camera poses with their depth scores, in order) whose
 /// [`appearance_match`] is within `margin` of the best label's, and those whose match cannot be
-/// computed; all of them where the best match is under [`MIN_APPEARANCE_MATCH`] or none can be computed
-/// (no colour image, a mesh without colours), or `margin` is 0 (off).
+/// computed; all of them where the best match is under [`MIN_APPEARANCE_MATCH`] or none can be
+/// computed (no colour image, a mesh without colours), or `margin` is 0 (off).
 pub(crate) fn keep_by_appearance(
     model: &ObjectModel,
     observation: &Observation,
