@@ -86,8 +86,9 @@ pub struct LabelOptions {
     /// a correlation; 0: off, the default; [`APPEARANCE_MARGIN`] the measured choice): what
     /// depth cannot tell apart, the print on a box can. Off by default because the labels then
     /// hold only the printed pose where BOP's geometric symmetries (and the scores against
-    /// them) hold its half turns too, and the quick preset's models learn the print poorly
-    /// (docs/results.md, "Colour tells printed look-alikes apart").
+    /// them) hold its half turns too, and the quick preset's models trained on them read the
+    /// print on their renders but not on real frames (docs/results.md, "Colour tells printed
+    /// look-alikes apart").
     pub appearance_margin: f64,
     /// Depth and mask are read at every n-th pixel of every n-th row ([`PixelLattice`]):
     /// the observed cloud is downsampled to voxels of millimetres anyway, and the
