@@ -88,7 +88,9 @@ pub struct LabelOptions {
     /// hold only the printed pose where BOP's geometric symmetries (and the scores against
     /// them) hold its half turns too, and the quick preset's models trained on them read the
     /// print on their renders but not on real frames (docs/results.md, "Colour tells printed
-    /// look-alikes apart").
+    /// look-alikes apart"). Recorded in `label_options.json` only when on, so that splits
+    /// labelled before it existed resume.
+    #[serde(skip_serializing_if = "is_off")]
     pub appearance_margin: f64,
     /// Depth and mask are read at every n-th pixel of every n-th row ([`PixelLattice`]):
     /// the observed cloud is downsampled to voxels of millimetres anyway, and the
@@ -126,6 +128,11 @@ impl Default for LabelOptions {
             seed: 0,
         }
     }
+}
+
+/// A margin of 0: the colour rule off.
+fn is_off(margin: &f64) -> bool {
+    *margin == 0.0
 }
 
 /// The [`LabelOptions::appearance_margin`] measured on textured scans' renders (off by
@@ -905,6 +912,19 @@ mod tests {
             };
             assert!(options.validate().is_ok(), "{step}");
         }
+    }
+
+    #[test]
+    fn the_colour_rule_is_recorded_only_when_on() {
+        // Splits labelled before the rule existed record no margin: off resumes them.
+        let off = serde_json::to_value(LabelOptions::default()).unwrap();
+        assert!(off.get("appearance_margin").is_none(), "{off}");
+        let on = LabelOptions {
+            appearance_margin: APPEARANCE_MARGIN,
+            ..LabelOptions::default()
+        };
+        let on = serde_json::to_value(on).unwrap();
+        assert_eq!(on["appearance_margin"], APPEARANCE_MARGIN);
     }
 
     #[test]
