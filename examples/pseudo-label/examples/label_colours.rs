@@ -20,7 +20,7 @@ use bop_dataset::{
     read_scene_camera, read_scene_gt,
 };
 use pseudo_label::{
-    LabelOptions, MIN_APPEARANCE_MATCH, ObjectModel, Observation, PixelLattice, appearance_match,
+    LabelOptions, ObjectModel, Observation, PixelLattice, appearance_keeps, appearance_match,
 };
 
 /// Each label's angle to the truth (degrees) and its match, per instance.
@@ -109,18 +109,14 @@ fn main() -> Result<(), Box<dyn Error>> {
 }
 
 /// Labels within 5° of the truth dropped, such labels, other labels dropped, other labels: by
-/// the labeller's rule with `margin`.
+/// the labeller's rule with `margin` ([`appearance_keeps`]).
 fn dropped(matched: &Matched, margin: f64) -> [usize; 4] {
     let mut counts = [0; 4];
     for labels in matched {
-        let best = labels
-            .iter()
-            .filter_map(|l| l.1)
-            .fold(f64::NEG_INFINITY, f64::max);
-        for &(angle, m) in labels {
-            let drop = best >= MIN_APPEARANCE_MATCH && m.is_some_and(|m| m < best - margin);
+        let matches: Vec<Option<f64>> = labels.iter().map(|l| l.1).collect();
+        for (&(angle, _), kept) in labels.iter().zip(appearance_keeps(&matches, margin)) {
             let k = if angle < 5.0 { 0 } else { 2 };
-            counts[k] += usize::from(drop);
+            counts[k] += usize::from(!kept);
             counts[k + 1] += 1;
         }
     }

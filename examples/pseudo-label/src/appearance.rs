@@ -116,35 +116,41 @@ impl ChannelSums {
 /// and its look-alikes −0.3–0.3; on a uniformly coloured object every match is noise near 0.
 pub const MIN_APPEARANCE_MATCH: f64 = 0.3;
 
-/// The `labels` (model→camera poses with their depth scores, in order) whose
-/// [`appearance_match`] is within `margin` of the best label's, and those whose match cannot be
-/// computed; all of them where the best match is under [`MIN_APPEARANCE_MATCH`] or none can be
-/// computed (no colour image, a mesh without colours), or `margin` is 0 (off).
+/// Which of the labels whose [`appearance_match`]es are `matches` the colour rule keeps: those
+/// within `margin` of the best match, and those whose match cannot be computed; all of them
+/// where the best match is under [`MIN_APPEARANCE_MATCH`] or none can be computed (no colour
+/// image, a mesh without colours), or `margin` is 0 (off).
+pub fn appearance_keeps(matches: &[Option<f64>], margin: f64) -> Vec<bool> {
+    let best = matches
+        .iter()
+        .flatten()
+        .copied()
+        .fold(f64::NEG_INFINITY, f64::max);
+    let on = margin > 0.0 && best >= MIN_APPEARANCE_MATCH;
+    matches
+        .iter()
+        .map(|m| !on || m.is_none_or(|m| m >= best - margin))
+        .collect()
+}
+
+/// The `labels` (model→camera poses with their depth scores, in order) that
+/// [`appearance_keeps`] keeps; none is rendered where `margin` is 0 (off).
 pub(crate) fn keep_by_appearance(
     model: &ObjectModel,
     observation: &Observation,
     labels: Vec<(Isometry3<f64>, f64)>,
     margin: f64,
 ) -> Vec<(Isometry3<f64>, f64)> {
-    if margin <= 0.0 || model.appearance.is_none() || observation.colour.is_none() {
+    if margin <= 0.0 {
         return labels;
     }
     let matches: Vec<Option<f64>> = labels
         .par_iter()
         .map(|(pose, _)| appearance_match(model, observation, pose))
         .collect();
-    let best = matches
-        .iter()
-        .flatten()
-        .copied()
-        .fold(f64::NEG_INFINITY, f64::max);
-    if best < MIN_APPEARANCE_MATCH {
-        return labels;
-    }
     labels
         .into_iter()
-        .zip(matches)
-        .filter(|(_, m)| m.is_none_or(|m| m >= best - margin))
-        .map(|(label, _)| label)
+        .zip(appearance_keeps(&matches, margin))
+        .filter_map(|(label, kept)| kept.then_some(label))
         .collect()
 }

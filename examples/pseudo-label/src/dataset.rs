@@ -135,6 +135,10 @@ fn is_off(margin: &f64) -> bool {
     *margin == 0.0
 }
 
+/// The [`LabelOptions::appearance_margin`]s that can be asked for: 0 (off) up to the widest a
+/// correlation's difference can be.
+pub const APPEARANCE_MARGINS: std::ops::RangeInclusive<f64> = 0.0..=2.0;
+
 /// The [`LabelOptions::appearance_margin`] measured on textured scans' renders (off by
 /// default: see the field).
 pub const APPEARANCE_MARGIN: f64 = 0.2;
@@ -183,10 +187,11 @@ impl LabelOptions {
         if !(self.score_margin.is_finite() && self.score_margin >= 0.0) {
             return Err(LabelError::option("score_margin", "must be at least 0"));
         }
-        if !(self.appearance_margin.is_finite() && (0.0..=2.0).contains(&self.appearance_margin)) {
+        if !APPEARANCE_MARGINS.contains(&self.appearance_margin) {
+            let (off, most) = APPEARANCE_MARGINS.into_inner();
             return Err(LabelError::option(
                 "appearance_margin",
-                "must be 0 (off) to 2",
+                format!("must be {off} (off) to {most}"),
             ));
         }
         if !(self.merge_angle_deg.is_finite() && self.merge_angle_deg >= 0.0) {

@@ -61,10 +61,10 @@ mod score;
 mod seeded;
 pub mod symmetries;
 
-pub use appearance::{MIN_APPEARANCE_MATCH, appearance_match};
+pub use appearance::{MIN_APPEARANCE_MATCH, appearance_keeps, appearance_match};
 pub use dataset::{
-    APPEARANCE_MARGIN, DatasetOptions, LABEL_OPTIONS_FILE, LabelOptions, LabelSummary,
-    REFERENCE_OPTIONS_FILE, Shard, Strategy, label_dataset, reference_dataset,
+    APPEARANCE_MARGIN, APPEARANCE_MARGINS, DatasetOptions, LABEL_OPTIONS_FILE, LabelOptions,
+    LabelSummary, REFERENCE_OPTIONS_FILE, Shard, Strategy, label_dataset, reference_dataset,
 };
 pub use error::LabelError;
 pub use instance::{

@@ -74,19 +74,10 @@ impl ObjectModel {
         })
     }
 
-    /// This model coloured as `appearance` (a texture needs the mesh's texture coordinates,
-    /// vertex colours its colours; a material the mesh cannot show is ignored).
+    /// This model coloured as `appearance` (a material its mesh cannot show, a texture
+    /// without texture coordinates, matches nothing: [`crate::appearance_match`] is `None`).
     pub fn with_appearance(self, appearance: Option<Material>) -> Self {
-        let mesh = &self.scene.meshes()[0];
-        let shown = match &appearance {
-            Some(Material::Image(_)) => mesh.uvs().is_some(),
-            Some(Material::VertexColors) => mesh.colors().is_some(),
-            _ => true,
-        };
-        Self {
-            appearance: appearance.filter(|_| shown),
-            ..self
-        }
+        Self { appearance, ..self }
     }
 }
 

@@ -48,11 +48,16 @@ pub fn check_ball(ball: Option<f64>) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `--appearance-margin`: a correlation margin from 0 (off) to 2, refused before any work.
+/// `--appearance-margin`: a correlation margin in [`pseudo_label::APPEARANCE_MARGINS`] (0:
+/// off), refused before any work.
 pub fn parse_appearance_margin(text: &str) -> Result<f64, String> {
+    let margins = pseudo_label::APPEARANCE_MARGINS;
     match text.trim().parse::<f64>() {
-        Ok(margin) if (0.0..=2.0).contains(&margin) => Ok(margin),
-        _ => Err(format!("{text}: a margin from 0 (off) to 2")),
+        Ok(margin) if margins.contains(&margin) => Ok(margin),
+        _ => {
+            let (off, most) = margins.into_inner();
+            Err(format!("{text}: a margin from {off} (off) to {most}"))
+        }
     }
 }
 
