@@ -1,5 +1,6 @@
 //! Labelling a BOP split: options, sharding, the per-scene loop and its summary.
 use std::collections::BTreeMap;
+use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -683,6 +684,37 @@ fn instance_seed(seed: u64, scene_id: u32, im_id: u32, instance: usize) -> u64 {
     x ^ (x >> 31)
 }
 
+/// The colours of the image at `path` on the lattice, or why the colour rule cannot use it
+/// (the warning its coloured instances carry): it cannot be read, or it is not of the depth's
+/// `size`.
+fn image_colour(
+    path: &Path,
+    size: (u32, u32),
+    lattice: &PixelLattice,
+) -> Result<Vec<[u8; 3]>, String> {
+    let off = "labelled by depth alone (the colour rule is on)";
+    let rgb = read_rgb(path).map_err(|error| format!("{off}: {error}"))?;
+    if (rgb.width, rgb.height) != size {
+        return Err(format!(
+            "{off}: {} is {}×{} pixels, the depth {}×{}",
+            path.display(),
+            rgb.width,
+            rgb.height,
+            size.0,
+            size.1
+        ));
+    }
+    Ok(lattice.sample(&rgb.pixels, [0; 3]))
+}
+
+/// Both warnings, where an instance has two.
+fn join_warnings(first: Option<String>, second: Option<String>) -> Option<String> {
+    match (first, second) {
+        (Some(first), Some(second)) => Some(format!("{first}; {second}")),
+        (first, second) => first.or(second),
+    }
+}
+
 /// One image of a scene.
 struct Image<'a> {
     scene: &'a SceneDir,
@@ -717,18 +749,22 @@ fn label_image(
     // Sampled once per image; each instance samples only its mask.
     let lattice = PixelLattice::new(&camera, options.pixel_stride);
     let sampled_depth = lattice.sample(&depth.pixels, 0.0);
-    // Only where some object is coloured and the image's colour is of the depth's size.
-    let sampled_colour = (options.appearance_margin > 0.0
-        && obj_ids.iter().any(|id| {
-            models
-                .get(id)
-                .and_then(Option::as_ref)
-                .is_some_and(|m| m.appearance.is_some())
-        }))
-    .then(|| read_rgb(&scene.rgb_path(im_id)).ok())
-    .flatten()
-    .filter(|rgb| (rgb.width, rgb.height) == (depth.width, depth.height))
-    .map(|rgb| lattice.sample(&rgb.pixels, [0; 3]));
+    // Read only where the colour rule is on and some object is coloured; where the image
+    // cannot serve, its coloured instances are labelled by depth alone, with a warning.
+    let coloured = |obj_id: &u32| {
+        models
+            .get(obj_id)
+            .and_then(Option::as_ref)
+            .is_some_and(|m| m.appearance.is_some())
+    };
+    let sampled_colour =
+        (options.appearance_margin > 0.0 && obj_ids.iter().any(coloured)).then(|| {
+            image_colour(
+                &scene.rgb_path(im_id),
+                (depth.width, depth.height),
+                &lattice,
+            )
+        });
     obj_ids
         .iter()
         .enumerate()
@@ -759,8 +795,11 @@ fn label_image(
             else {
                 return failed_instance(obj_id, &LabelFailure::EmptyMask);
             };
-            if let Some(colour) = &sampled_colour {
-                observation = observation.with_colour(colour);
+            let mut colour_warning = None;
+            match &sampled_colour {
+                Some(Ok(colour)) => observation = observation.with_colour(colour),
+                Some(Err(warning)) if coloured(&obj_id) => colour_warning = Some(warning.clone()),
+                _ => {}
             }
             let seed = instance_seed(options.seed, scene.id, im_id, k);
             let found = (job.label)(
@@ -791,7 +830,7 @@ fn label_image(
                 obj_id,
                 labels,
                 error,
-                warning: found.warning,
+                warning: join_warnings(found.warning, colour_warning),
                 best,
             };
             Outcome {

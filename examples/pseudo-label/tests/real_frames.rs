@@ -126,6 +126,7 @@ struct Scored {
     obj_id: u32,
     truncated: bool,
     errors: Vec<Errors>,
+    warning: Option<String>,
 }
 
 /// Whether a rendering of the whole image (`width` columns) reaches the image's border.
@@ -193,6 +194,7 @@ fn label_and_score(root: &Path, options: &LabelOptions) -> Vec<Scored> {
                     obj_id: gt.obj_id,
                     truncated: touches_border(&truth_depth, camera.width as usize),
                     errors,
+                    warning: found.warning.clone(),
                 });
             }
         }
@@ -277,13 +279,18 @@ fn real_frames_are_all_labelled_and_their_labels_show_the_true_surface() {
 /// every set keeps its poses near the truth, and the sugar box's and pudding box's sets, which
 /// hold their half turns without the colours, hold none with them. The published rotation is
 /// the oracle; poses counted near it are near a pose of its geometric symmetry group, half
-/// turns those over 90° from every such pose.
+/// turns those over 90° from every such pose. Scene 0's colour image is made unreadable: its
+/// (coloured) instances keep their depth-only labels and each warns of it, naming the image.
 #[test]
 fn real_colours_drop_the_half_turns_of_printed_boxes_and_keep_their_poses() {
     let dir = tempfile::tempdir().unwrap();
+    let unreadable = Path::new("test/000000/rgb/000001.jpg");
     let label = |name: &str, margin: f64| {
         let root = dir.path().join(name);
         copy_dir(&fixture(), &root);
+        if margin > 0.0 {
+            std::fs::write(root.join(unreadable), b"not a JPEG").unwrap();
+        }
         let options = LabelOptions {
             appearance_margin: margin,
             ..LabelOptions::default()
@@ -309,6 +316,15 @@ fn real_colours_drop_the_half_turns_of_printed_boxes_and_keep_their_poses() {
         if [3, 7].contains(&after.obj_id) {
             assert!(half_turns(before) > 0, "{before:?}");
             assert_eq!(half_turns(after), 0, "{after:?}");
+        }
+        let warned = after
+            .warning
+            .as_deref()
+            .is_some_and(|w| w.contains("depth alone") && w.contains(unreadable.to_str().unwrap()));
+        assert_eq!(warned, after.scene == 0, "{after:?}");
+        if after.scene == 0 {
+            let angles = |s: &Scored| s.errors.iter().map(|e| e.angle).collect::<Vec<_>>();
+            assert_eq!(angles(after), angles(before));
         }
     }
 }
