@@ -154,7 +154,7 @@ fn median_of_enough(mut values: Vec<f64>) -> Option<f64> {
 }
 
 /// The per-axis medians of `points`; `None` for fewer than [`MIN_PIXELS`].
-fn median_point(points: &[Point3<f32>]) -> Option<Vector3<f64>> {
+pub(crate) fn median_point(points: &[Point3<f32>]) -> Option<Vector3<f64>> {
     let [x, y, z] =
         [0, 1, 2].map(|axis| median_of_enough(points.iter().map(|p| f64::from(p[axis])).collect()));
     Some(Vector3::new(x?, y?, z?))
