@@ -40,10 +40,10 @@ pub const VSD_CORRECT: f64 = 0.3;
 /// nothing of where the object is, so it is placed two ways and the lower VSD counts: the centre
 /// of the mesh's bounding box where the truth puts it (a box turned half about its own centre
 /// shows the surface the truth shows even where the mesh's origin is off that centre), and then
-/// moved so that its rendered surface's median point (per axis) lies on the truth's: a mug's bounding box is centred 8 mm off its axis, towards the handle,
-/// so a turn about the axis that keeps the handle hidden moves the cup sideways about that
-/// centre. `None` for an instance without a rotation, whose frame has no depth image, or where
-/// neither pose is visible.
+/// moved so that its rendered surface's median point (per axis) lies on the truth's: a mug's
+/// bounding box is centred 8 mm off its axis, towards the handle, so a turn about the axis that
+/// keeps the handle hidden moves the cup sideways about that centre. `None` for an instance
+/// without a rotation, whose frame has no depth image, or where neither pose is visible.
 pub fn rotation_vsd(
     dataset: &BopDataset,
     split: &str,
