@@ -1021,4 +1021,29 @@ mod tests {
             assert!(error.contains(name), "{error}");
         }
     }
+
+    /// The colour rule's image: one of another size than the depth, or one that cannot be
+    /// read, is refused with a warning naming the file; one of the depth's size is sampled.
+    #[test]
+    fn an_image_whose_colours_cannot_serve_is_refused_naming_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let camera = depth_render::PinholeCamera::new(40.0, 40.0, 16.0, 12.0, 32, 24).unwrap();
+        let lattice = PixelLattice::new(&camera, 2);
+        let path = dir.path().join("000001.png");
+        bop_dataset::write_rgb(&path, &vec![[10, 20, 30]; 16 * 12], 16, 12).unwrap();
+        let error = image_colour(&path, (32, 24), &lattice).unwrap_err();
+        assert!(
+            error.contains("000001.png") && error.contains("16×12") && error.contains("32×24"),
+            "{error}"
+        );
+        bop_dataset::write_rgb(&path, &vec![[10, 20, 30]; 32 * 24], 32, 24).unwrap();
+        let colours = image_colour(&path, (32, 24), &lattice).unwrap();
+        assert_eq!(colours, vec![[10, 20, 30]; 16 * 12]);
+        std::fs::write(&path, b"not a PNG").unwrap();
+        let error = image_colour(&path, (32, 24), &lattice).unwrap_err();
+        assert!(
+            error.contains("000001.png") && error.contains("depth alone"),
+            "{error}"
+        );
+    }
 }
