@@ -161,6 +161,17 @@ fn real_frames_are_scored_per_instance_from_their_boxes_as_from_masks_filling_th
         &["--crop", "mask"],
     );
     assert_eq!(from_masks, from_boxes);
+    // Masks but no depth image: nothing to refine a pose against, so a pose refined with depth
+    // is not scored (no share of true poses at 0%), and the scores are those without the flag.
+    let refined = eval(
+        &run,
+        &root,
+        &dir.path().join("hypotheses.json"),
+        &["--crop", "mask", "--depth-hypotheses", "8"],
+    );
+    assert_eq!(refined, from_masks);
+    let table = std::fs::read_to_string(dir.path().join("hypotheses.md")).unwrap();
+    assert!(!table.contains("refined"), "{table}");
 
     // --min-visib: the ape is 20% visible.
     let ape = |min: &str| {

@@ -64,7 +64,8 @@ pub struct EvalArgs {
     /// hypotheses (its rotation estimate, then its densest cells 30° apart) and each frame's
     /// depth inside the instance's visible mask: each placed on the masked points, refined by
     /// ICP and scored by render-and-compare, the depth choosing among them where it can tell
-    /// them apart and the image where it cannot (0: off; 8 is the mesh pipeline's).
+    /// them apart and the image where it cannot (0: off; 8 is the mesh pipeline's). A split
+    /// without depth under any visible mask is scored as without it.
     #[arg(long, default_value_t = 0)]
     pub depth_hypotheses: usize,
     /// The depth camera of the frames, whose expected errors `--depth-hypotheses` compares the

@@ -83,7 +83,8 @@ pub struct EvalRequest {
     pub truth: Truth,
     /// With per-instance scores, a pose found from this many of the rotation model's
     /// hypotheses and the frame's depth is scored beside the models' own
-    /// ([`surface::depth_refined_poses`]; 0: none).
+    /// ([`surface::depth_refined_poses`]; 0: none; a split without depth under any visible
+    /// mask is scored as with 0).
     pub depth_hypotheses: usize,
     /// The depth camera of the split's frames: its expected errors are the unit in which that
     /// pose is compared with the depth (default: the labeller's).
@@ -365,15 +366,19 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
             &examples,
             &most_likely,
         )?;
-        let refined = if refine {
-            let poses = surface::depth_refined_poses(
+        let refined_poses = if refine {
+            surface::depth_refined_poses(
                 &dataset,
                 &request.split,
                 info.obj_id,
                 &examples,
                 &evaluation.hypotheses,
                 request.sensor,
-            )?;
+            )?
+        } else {
+            None
+        };
+        let refined = if let Some(poses) = refined_poses {
             let rotations: Vec<_> = poses.iter().map(|p| p.map(|p| p.rotation)).collect();
             let vsd = surface::rotation_vsd(
                 &dataset,

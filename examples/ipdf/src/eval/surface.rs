@@ -154,7 +154,9 @@ pub fn depth_fitted_translations(
 /// ([`crate::depth_fit::pose_from_depth`] with the labeller's default options but `sensor`:
 /// object `obj_id`'s mesh, the sensor's expected errors moved to the depth's noise, every other
 /// pixel), translation in mm. `None` for an instance whose frame has no depth image or no mask,
-/// or whose masked depth cannot be registered (too few points, another scale).
+/// or whose masked depth cannot be registered (too few points, another scale); `None` for the
+/// whole split where no instance's frame has both (an RGB-only dataset, or boxes without masks):
+/// there is nothing to refine against, which is not a failure to refine.
 pub fn depth_refined_poses(
     dataset: &BopDataset,
     split: &str,
@@ -162,7 +164,7 @@ pub fn depth_refined_poses(
     examples: &Examples,
     hypotheses: &[Vec<UnitQuaternion<f64>>],
     sensor: SensorPreset,
-) -> Result<Vec<Option<Isometry3<f64>>>, Error> {
+) -> Result<Option<Vec<Option<Isometry3<f64>>>>, Error> {
     let options = LabelOptions {
         sensor,
         ..LabelOptions::default()
@@ -170,11 +172,13 @@ pub fn depth_refined_poses(
     let model = ObjectModel::new(obj_id, &object_mesh(dataset, obj_id, 0.001)?, &options)?;
     let mut frames = FrameDepths::new(dataset, split);
     let mut refined = Vec::with_capacity(hypotheses.len());
+    let mut any_depth = false;
     for (at, rotations) in examples.instances.iter().zip(hypotheses) {
         let Some((frame, mask)) = frames.load_masked(at)? else {
             refined.push(None);
             continue;
         };
+        any_depth = true;
         let pose = pose_from_depth(
             &model,
             &options,
@@ -190,7 +194,7 @@ pub fn depth_refined_poses(
             )
         }));
     }
-    Ok(refined)
+    Ok(any_depth.then_some(refined))
 }
 
 /// A pose whose translation is in mm, in metres.
