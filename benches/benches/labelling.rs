@@ -30,6 +30,7 @@ fn labelling(c: &mut Criterion) {
         let object = SynthObject::built_in(kind).unwrap();
         let style = FrameStyle {
             material: Material::Uniform(object.colour),
+            random_surface: false,
             distractors: 0,
             occluders: 0,
             sensor: Some(DepthSensor::kinect()),

@@ -83,6 +83,7 @@ fn check_labelled_render(mesh: &TriangleMesh) -> Result<()> {
     let camera = PinholeCamera::new(1066.8, 1067.5, 312.99, 241.31, 640, 480)?;
     let style = FrameStyle {
         material: Material::Uniform([0.9, 0.8, 0.1]),
+        random_surface: false,
         distractors: 0,
         occluders: 0,
         sensor: None,

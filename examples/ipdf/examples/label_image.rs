@@ -18,6 +18,7 @@ fn main() -> Result<()> {
     let camera = SynthOptions::t_less_camera().camera;
     let style = FrameStyle {
         material: Material::Uniform(object.colour),
+        random_surface: false,
         distractors: 2,
         occluders: 0,
         sensor: Some(DepthSensor::kinect()),

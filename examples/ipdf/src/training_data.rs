@@ -782,6 +782,7 @@ pub fn rendered_examples(
     let camera = synth_data::SynthOptions::t_less_camera().camera;
     let style = synth_data::FrameStyle {
         material: depth_render::Material::Uniform(object.colour),
+        random_surface: false,
         distractors: 0,
         occluders: 0,
         sensor: None,

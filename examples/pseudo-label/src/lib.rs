@@ -26,6 +26,7 @@
 //! let camera = SynthOptions::t_less_camera().camera;
 //! let style = FrameStyle {
 //!     material: Material::Uniform(object.colour),
+//!     random_surface: false,
 //!     distractors: 0,
 //!     occluders: 0,
 //!     sensor: Some(DepthSensor::kinect()),

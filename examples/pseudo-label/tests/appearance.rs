@@ -101,6 +101,7 @@ fn the_print_drops_a_boxs_half_turns_from_its_labels_and_keeps_its_pose() {
     let camera = SynthOptions::default().camera.camera;
     let style = FrameStyle {
         material: appearance,
+        random_surface: false,
         distractors: 2,
         occluders: 1,
         sensor: Some(DepthSensor::kinect()),

@@ -19,6 +19,7 @@ fn frame(object: &SynthObject, seed: u64) -> (PinholeCamera, Frame) {
     let camera = SynthOptions::t_less_camera().camera;
     let style = FrameStyle {
         material: Material::Uniform(object.colour),
+        random_surface: false,
         distractors: 0,
         occluders: 0,
         sensor: Some(DepthSensor::kinect()),

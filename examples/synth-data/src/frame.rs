@@ -234,6 +234,11 @@ pub struct Frame {
 pub struct FrameStyle {
     /// The object's material.
     pub material: Material,
+    /// The object wears a surface drawn per frame instead of `material`, as distractors do
+    /// under `randomization.textures` (a flat colour, a procedural texture or one of
+    /// `borrowed_textures`): what [`crate::synthesize`] gives, with textures randomised, a mesh
+    /// that brings no surface of its own, whose real look is unknown.
+    pub random_surface: bool,
     /// Distractor objects on the table around it.
     pub distractors: usize,
     /// Objects on the table between it and the camera, hiding part of it: distractor shapes or
@@ -313,7 +318,12 @@ impl FrameRenderer {
         let random = &style.randomization;
         let look = random.draw_look(rng, camera.width, camera.height);
         let mut instances = vec![Instance::new(0, pose), Instance::new(1, camera_from_world)];
-        let mut materials = vec![style.material.clone(), look.table];
+        let surface = if style.random_surface {
+            Randomization::draw_surface(rng, &style.borrowed_textures)
+        } else {
+            style.material.clone()
+        };
+        let mut materials = vec![surface, look.table];
         for (instance, material) in others {
             instances.push(instance);
             materials.push(if random.textures {
@@ -626,6 +636,7 @@ mod tests {
         let camera = crate::SynthOptions::t_less_camera().camera;
         let style = FrameStyle {
             material: Material::Uniform(object.colour),
+            random_surface: false,
             distractors,
             occluders,
             sensor: None,

@@ -17,7 +17,9 @@ pub struct Randomization {
     pub lights: bool,
     /// Procedural textures on the table and behind it.
     pub backgrounds: bool,
-    /// Distractors and occluders in procedural textures or the objects' own, not flat colours.
+    /// Distractors and occluders in procedural textures or the objects' own, not flat colours;
+    /// and in the texture variant, an object whose mesh brings no surface of its own (no
+    /// texture, no vertex colours) in a surface drawn as theirs are, per frame.
     pub textures: bool,
     /// The colour camera: blur, exposure, white balance, noise, tone curve, JPEG quality.
     pub camera: bool,

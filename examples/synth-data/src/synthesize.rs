@@ -330,6 +330,9 @@ fn frame_style(
     };
     FrameStyle {
         material,
+        random_surface: options.variant == Variant::Texture
+            && object.appearance.is_none()
+            && options.randomization.textures,
         distractors: options.distractors,
         occluders: options.occluders,
         sensor: options.sensor,

@@ -262,14 +262,20 @@ fn cube_ply(header: &str, colour: &str) -> String {
     ply + "4 0 2 3 1\n4 4 5 7 6\n4 0 1 5 4\n4 2 6 7 3\n4 0 4 6 2\n4 1 3 7 5\n"
 }
 
-/// The colours of the object's visible pixels in every frame of `variant` of `object`.
-fn object_pixels(object: &SynthObject, variant: synth_data::Variant) -> Vec<[u8; 3]> {
+/// The colours of the object's visible pixels in every frame of `variant` of `object`, the
+/// frames' look drawn as `randomization` says.
+fn object_pixels(
+    object: &SynthObject,
+    variant: synth_data::Variant,
+    randomization: synth_data::Randomization,
+) -> Vec<[u8; 3]> {
     let dir = tempfile::tempdir().unwrap();
     let dataset = BopDataset::new(dir.path());
     let options = SynthOptions {
         frames: 2,
         frames_per_scene: 2,
         variant,
+        randomization,
         ..SynthOptions::default()
     };
     let objects = std::slice::from_ref(object);
@@ -293,7 +299,7 @@ fn object_pixels(object: &SynthObject, variant: synth_data::Variant) -> Vec<[u8;
 
 #[test]
 fn a_mesh_files_own_texture_or_vertex_colours_show_in_the_texture_variant() {
-    use synth_data::Variant;
+    use synth_data::{Randomization, Variant};
     let dir = tempfile::tempdir().unwrap();
     // A texture of one colour, pure green: every shaded pixel of the cube is green, darker or
     // lighter, and nothing else; the uniform variant shows it grey.
@@ -302,12 +308,12 @@ fn a_mesh_files_own_texture_or_vertex_colours_show_in_the_texture_variant() {
     let textured = dir.path().join("textured.ply");
     std::fs::write(&textured, cube_ply("comment TextureFile green.png\n", "")).unwrap();
     let (object, _) = SynthObject::from_mesh_file(&textured, 0.001).unwrap();
-    let green = object_pixels(&object, Variant::Texture);
+    let green = object_pixels(&object, Variant::Texture, Randomization::NONE);
     assert!(
         green.iter().all(|&[r, g, b]| r == 0 && b == 0 && g > 0),
         "{green:?}"
     );
-    let grey = object_pixels(&object, Variant::Uniform);
+    let grey = object_pixels(&object, Variant::Uniform, Randomization::NONE);
     assert!(
         grey.iter().all(|&[r, g, b]| r == g && g == b && r > 0),
         "{grey:?}"
@@ -317,7 +323,7 @@ fn a_mesh_files_own_texture_or_vertex_colours_show_in_the_texture_variant() {
     let coloured = dir.path().join("coloured.ply");
     std::fs::write(&coloured, cube_ply("", "255 0 0")).unwrap();
     let (object, _) = SynthObject::from_mesh_file(&coloured, 0.001).unwrap();
-    let red = object_pixels(&object, Variant::Texture);
+    let red = object_pixels(&object, Variant::Texture, Randomization::NONE);
     assert!(
         red.iter().all(|&[r, g, b]| r > 0 && g == 0 && b == 0),
         "{red:?}"
@@ -334,6 +340,34 @@ fn a_mesh_files_own_texture_or_vertex_colours_show_in_the_texture_variant() {
             && error.contains("TextureFile")
             && error.contains("gone.png"),
         "{error}"
+    );
+}
+
+#[test]
+fn a_mesh_without_a_surface_of_its_own_wears_a_random_one_when_textures_are_randomised() {
+    use synth_data::{Randomization, Variant};
+    let dir = tempfile::tempdir().unwrap();
+    let textures = Randomization {
+        textures: true,
+        ..Randomization::NONE
+    };
+    // No texture, no vertex colours: the texture variant's colour patches in the plain look; with
+    // textures randomised the same frames (the geometry is drawn before the look: the same
+    // visible pixels) show it in other colours.
+    let bare = dir.path().join("bare.ply");
+    std::fs::write(&bare, cube_ply("", "")).unwrap();
+    let (object, _) = SynthObject::from_mesh_file(&bare, 0.001).unwrap();
+    let patches = object_pixels(&object, Variant::Texture, Randomization::NONE);
+    let drawn = object_pixels(&object, Variant::Texture, textures);
+    assert_eq!(patches.len(), drawn.len());
+    assert!(patches != drawn);
+    // A mesh with its own colours keeps them: the object's pixels are those of the plain look.
+    let coloured = dir.path().join("coloured.ply");
+    std::fs::write(&coloured, cube_ply("", "255 0 0")).unwrap();
+    let (object, _) = SynthObject::from_mesh_file(&coloured, 0.001).unwrap();
+    assert_eq!(
+        object_pixels(&object, Variant::Texture, textures),
+        object_pixels(&object, Variant::Texture, Randomization::NONE)
     );
 }
 

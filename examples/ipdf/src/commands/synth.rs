@@ -95,7 +95,9 @@ pub struct SynthArgs {
     /// `lights` (direction, strength, colour, ambient, highlight), `backgrounds` (procedural
     /// table and background textures), `textures` (distractors and occluders in procedural
     /// textures or the objects' own) and `camera` (blur, exposure, white balance, noise, tone
-    /// curve, JPEG quality). The objects keep their `--variant` look.
+    /// curve, JPEG quality). The objects keep their `--variant` look, but with `textures` a
+    /// mesh without texture or vertex colours wears a random surface per frame in the texture
+    /// variant instead of fixed colour patches.
     #[arg(long, num_args = 0..=1, default_missing_value = "all", value_name = "PARTS")]
     pub randomize: Option<String>,
 }
