@@ -36,10 +36,16 @@ read -r -a EXTRA <<< "${PIPELINE_ARGS:-}"
 OVERRIDES+=("${EXTRA[@]}")
 OBJECTS=("$@")
 if [ ${#OBJECTS[@]} -eq 0 ]; then
-    for mesh in "$DATASET"/models/obj_*.ply; do
+    shopt -s nullglob
+    for mesh in "$DATASET"/models/obj_[0-9][0-9][0-9][0-9][0-9][0-9].ply; do
         id=${mesh##*/obj_}
         OBJECTS+=($((10#${id%.ply})))
     done
+    shopt -u nullglob
+    if [ ${#OBJECTS[@]} -eq 0 ]; then
+        echo "real-frame-benchmark: $DATASET/models holds no obj_NNNNNN.ply mesh; set DATASET to a BOP dataset" >&2
+        exit 1
+    fi
 fi
 mkdir -p "$OUT"
 # The frames' camera: the dataset's camera.json, else its first frame's.
@@ -49,18 +55,27 @@ root, split, out = sys.argv[1:4]
 if os.path.exists(f"{root}/camera.json"):
     json.dump(json.load(open(f"{root}/camera.json")), open(out, "w"), indent=2)
     sys.exit()
-scene = sorted(glob.glob(f"{root}/{split}/*/scene_camera.json"))[0]
-im_id, first = min(json.load(open(scene)).items(), key=lambda kv: int(kv[0]))
+scenes = sorted(glob.glob(f"{root}/{split}/*/scene_camera.json"))
+if not scenes:
+    sys.exit(f"real-frame-benchmark: no camera.json in {root} and no {split}/*/scene_camera.json: "
+             "set DATASET to a BOP dataset and SPLIT to its split")
+im_id, first = min(json.load(open(scenes[0])).items(), key=lambda kv: int(kv[0]))
 k = first["cam_K"]
-images = [p for folder in ("rgb", "gray") for p in glob.glob(f"{os.path.dirname(scene)}/{folder}/{int(im_id):06d}.*")]
+frame = f"{os.path.dirname(scenes[0])}/{{rgb,gray}}/{int(im_id):06d}.*"
+images = [p for folder in ("rgb", "gray") for p in glob.glob(frame.replace("{rgb,gray}", folder))]
+if not images:
+    sys.exit(f"real-frame-benchmark: no image {frame} for the camera's size")
 data = open(images[0], "rb").read()
-if data[:8] == b"\x89PNG\r\n\x1a\n":
-    width, height = struct.unpack(">II", data[16:24])
-else:  # JPEG: the first start-of-frame marker holds the size
-    at = 2
-    while data[at + 1] not in (0xC0, 0xC1, 0xC2, 0xC3):
-        at += 2 + struct.unpack(">H", data[at + 2:at + 4])[0]
-    height, width = struct.unpack(">HH", data[at + 5:at + 9])
+try:
+    if data[:8] == b"\x89PNG\r\n\x1a\n":
+        width, height = struct.unpack(">II", data[16:24])
+    else:  # JPEG: the first start-of-frame marker holds the size
+        at = 2
+        while data[at + 1] not in (0xC0, 0xC1, 0xC2, 0xC3):
+            at += 2 + struct.unpack(">H", data[at + 2:at + 4])[0]
+        height, width = struct.unpack(">HH", data[at + 5:at + 9])
+except (IndexError, struct.error):
+    sys.exit(f"real-frame-benchmark: {images[0]}: neither a PNG nor a JPEG whose size can be read")
 json.dump({"fx": k[0], "fy": k[4], "cx": k[2], "cy": k[5], "width": width, "height": height,
            "depth_scale": first.get("depth_scale", 1.0)}, open(out, "w"), indent=2)
 EOF2
@@ -85,7 +100,9 @@ rows.sort(key=lambda r: (r["scene_id"], r["im_id"], r["instance"]))
 visible = lambda r: "—" if r.get("visib_fract") is None else f"{r['visib_fract']:.0%}"
 lines = ["| scene | image | obj | visible | rotation error (°) | VSD | LLH | translation error (mm) | ADD(-S) (mm) | under 10% of the diameter | fitted to depth: translation error (mm) | its ADD(-S) (mm) | under 10% | refined with depth: rotation error (°) | its VSD | translation error (mm) | ADD(-S) (mm) | under 10% |",
          "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
-under = lambda add, r: "—" if add is None else "yes" if add < 0.1 * r["diameter_mm"] else "no"
+# ADD(-S) under 10% of the object's diameter: a correct pose.
+within = lambda add, r: add is not None and add < 0.1 * r["diameter_mm"]
+under = lambda add, r: "—" if add is None else "yes" if within(add, r) else "no"
 one = lambda v, digits=1: "—" if v is None else f"{v:.{digits}f}"
 for r in rows:
     lines.append(f"| {r['scene_id']} | {r['im_id']} | {r['obj_id']} | {visible(r)} | {r['rotation_error_deg']:.1f} | {one(r.get('vsd'), 2)} | {r['llh']:.2f} | {r['translation_error_mm']:.1f} | {r['add_mm']:.1f} ({r['add_metric']}) | {under(r['add_mm'], r)} | "
@@ -105,7 +122,7 @@ fitted = sorted(r["fitted_translation_error_mm"] for r in rows if r.get("fitted_
 refined_true = lambda r: (r.get("refined_rotation_error_deg") is not None and r["refined_rotation_error_deg"] < 15) or (
     r.get("refined_vsd") is not None and r["refined_vsd"] < 0.3)
 refined = sorted(r["refined_translation_error_mm"] for r in rows if r.get("refined_translation_error_mm") is not None)
-under_tenth = lambda key: sum(r.get(key) is not None and r[key] < 0.1 * r["diameter_mm"] for r in rows) / n
+under_tenth = lambda key: sum(within(r.get(key), r) for r in rows) / n
 uniform = -math.log(math.pi ** 2)
 summary = {
     "instances": n,

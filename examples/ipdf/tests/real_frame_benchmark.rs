@@ -229,3 +229,48 @@ fn a_dataset_without_depth_is_scored_on_its_frames_camera_without_depth_scores()
         "{table}"
     );
 }
+
+#[test]
+fn a_dataset_it_cannot_read_is_refused_naming_what_is_missing() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    let refused = |ids: &[&str]| -> String {
+        let run = Command::new("bash")
+            .arg(workspace().join("scripts/real-frame-benchmark.sh"))
+            .arg(dir.path().join("out"))
+            .args(ids)
+            .env("IPDF", env!("CARGO_BIN_EXE_ipdf"))
+            .env("DATASET", &data)
+            .output()
+            .unwrap();
+        assert!(!run.status.success());
+        String::from_utf8_lossy(&run.stderr).into_owned()
+    };
+    std::fs::create_dir_all(data.join("models")).unwrap();
+    let error = refused(&[]);
+    assert!(error.contains("models holds no obj_NNNNNN.ply"), "{error}");
+    // An object named, but no camera: neither camera.json nor a scene_camera.json.
+    let error = refused(&["3"]);
+    assert!(
+        error.contains("no camera.json") && error.contains("test/*/scene_camera.json"),
+        "{error}"
+    );
+    let scene = data.join("test/000001");
+    std::fs::create_dir_all(scene.join("rgb")).unwrap();
+    std::fs::write(
+        scene.join("scene_camera.json"),
+        r#"{"5": {"cam_K": [600, 0, 320, 0, 600, 240, 0, 0, 1]}}"#,
+    )
+    .unwrap();
+    let error = refused(&["3"]);
+    assert!(
+        error.contains("no image") && error.contains("000005"),
+        "{error}"
+    );
+    std::fs::write(scene.join("rgb/000005.jpg"), b"not an image").unwrap();
+    let error = refused(&["3"]);
+    assert!(
+        error.contains("rgb/000005.jpg: neither a PNG nor a JPEG"),
+        "{error}"
+    );
+}
