@@ -15,7 +15,9 @@ pub fn as_recorded(value: Value) -> Value {
 
 /// Refuses the settings recorded at `path` when they differ from `expected` (an object), naming
 /// the first key that differs, what was recorded and what this run asks for; `remedy` says
-/// what to do instead. A missing file (nothing recorded yet, or an older version) is accepted.
+/// what to do instead. A key on one side only stands for `null` on the other (settings recorded
+/// only where used: a split made with one is refused to a run without it, and the reverse). A
+/// missing file (nothing recorded yet, or an older version) is accepted.
 pub fn check_recorded(path: &Path, expected: &Value, remedy: &str) -> Result<(), FileError> {
     if !path.exists() {
         return Ok(());
@@ -27,8 +29,10 @@ pub fn check_recorded(path: &Path, expected: &Value, remedy: &str) -> Result<(),
     let Some(expected) = expected.as_object() else {
         return Ok(());
     };
-    for (key, value) in expected {
+    let recorded_only = recorded.keys().filter(|key| !expected.contains_key(*key));
+    for key in expected.keys().chain(recorded_only) {
         let found = recorded.get(key).unwrap_or(&Value::Null);
+        let value = expected.get(key).unwrap_or(&Value::Null);
         if found != value {
             return Err(FileError::new(
                 path,
@@ -60,5 +64,16 @@ mod tests {
             .to_string();
         assert!(error.contains("scale") && error.contains("0.1") && error.contains("0.2"));
         assert!(error.ends_with("fix it"), "{error}");
+        // A setting recorded only where used: the split made with it is refused to a run
+        // without it.
+        let with = as_recorded(json!({"seed": 1, "scale": 0.1, "occluders": 2}));
+        crate::write_json(&path, &with).unwrap();
+        let error = check_recorded(&path, &settings, "fix it")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            error.contains("occluders") && error.contains("null"),
+            "{error}"
+        );
     }
 }
