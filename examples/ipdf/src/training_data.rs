@@ -171,6 +171,10 @@ pub struct Examples {
     pub visible_fractions: Vec<Option<f64>>,
     /// Ground-truth rotations read as their nearest rotations.
     pub repairs: RotationRepairs,
+    /// How many crops were cut around the instance's box (everything inside it) rather than
+    /// its visible mask: all under [`CropSource::Box`], those without a mask under
+    /// [`CropSource::Auto`].
+    pub box_crops: usize,
 }
 
 impl Examples {
@@ -277,8 +281,10 @@ pub fn load_examples(dataset: &BopDataset, options: &ExampleOptions) -> Result<E
         let reason = format!("no labelled instance of {place}");
         return Err(Error::option("dataset", reason));
     }
-    let (pending, crops): (Vec<Pending>, Vec<FileCrop>) =
+    let (pending, crops): (Vec<Pending>, Vec<(FileCrop, bool)>) =
         crop_instances(dataset, options, pending)?;
+    let box_crops = crops.iter().filter(|(_, boxed)| *boxed).count();
+    let crops: Vec<FileCrop> = crops.into_iter().map(|(crop, _)| crop).collect();
     if pending.is_empty() {
         let reason = format!("every instance of {place} has an empty visible mask or box");
         return Err(Error::option("dataset", reason));
@@ -307,6 +313,7 @@ pub fn load_examples(dataset: &BopDataset, options: &ExampleOptions) -> Result<E
             .map(|p| p.info.as_ref().map(|(info, ..)| info.visib_fract))
             .collect(),
         repairs,
+        box_crops,
     })
 }
 
@@ -485,15 +492,15 @@ fn read_scene_label_sets(
     read_pseudo_gt(path)
 }
 
-/// The crops of `pending`, in parallel; an instance whose visible mask or box is empty (fully
-/// occluded: BOP keeps them, with `visib_fract` 0) is left out, like one below the visible
-/// fraction.
+/// The crops of `pending`, in parallel, each with whether it was cut around a box; an instance
+/// whose visible mask or box is empty (fully occluded: BOP keeps them, with `visib_fract` 0) is
+/// left out, like one below the visible fraction.
 fn crop_instances(
     dataset: &BopDataset,
     options: &ExampleOptions,
     pending: Vec<Pending>,
-) -> Result<(Vec<Pending>, Vec<FileCrop>), Error> {
-    let crops: Vec<Option<FileCrop>> = pending
+) -> Result<(Vec<Pending>, Vec<(FileCrop, bool)>), Error> {
+    let crops: Vec<Option<(FileCrop, bool)>> = pending
         .par_iter()
         .map(|p| crop_instance(dataset, options, p))
         .collect::<Result<_, Error>>()?;
@@ -504,12 +511,13 @@ fn crop_instances(
         .unzip())
 }
 
-/// The crop of one instance as `options.crop` asks; `None` when its mask or box is empty.
+/// The crop of one instance as `options.crop` asks, and whether it was cut around a box;
+/// `None` when its mask or box is empty.
 fn crop_instance(
     dataset: &BopDataset,
     options: &ExampleOptions,
     p: &Pending,
-) -> Result<Option<FileCrop>, Error> {
+) -> Result<Option<(FileCrop, bool)>, Error> {
     let scene = dataset.scene(&options.split, p.at.scene_id);
     let rgb = scene.rgb_path(p.at.im_id);
     let mask = scene.visible_mask_path(p.at.im_id, p.at.instance);
@@ -520,7 +528,7 @@ fn crop_instance(
     };
     if use_mask {
         return match crop_files(&rgb, &mask, options.input_size) {
-            Ok(crop) => Ok(Some(crop)),
+            Ok(crop) => Ok(Some((crop, false))),
             Err(CropError::EmptyMask(_)) => Ok(None),
             Err(error) => Err(error.into()),
         };
@@ -534,7 +542,7 @@ fn crop_instance(
     };
     let clip = options.box_jitter.is_some();
     match crop_file_box(&rgb, &image_box, options.input_size, clip) {
-        Ok(crop) => Ok(Some(crop)),
+        Ok(crop) => Ok(Some((crop, true))),
         Err(CropError::BadBox(reason)) => Err(FileError::new(&file, field, reason).into()),
         Err(error) => Err(error.into()),
     }
@@ -835,5 +843,6 @@ pub fn rendered_examples(
         instances,
         visible_fractions: vec![None; count],
         repairs: RotationRepairs::default(),
+        box_crops: 0,
     })
 }

@@ -146,6 +146,30 @@ fn real_frames_are_scored_per_instance_from_their_boxes_as_from_masks_filling_th
         "{table}"
     );
 
+    // A model trained on boxes, scored on boxes: nothing to warn of. The same model as if
+    // trained on masked crops (its run.json says so) is scored on the same boxes, for want of
+    // masks, with a warning that says so.
+    let box_warning = |scores: &Value| {
+        let warning = scores["warning"].as_str().unwrap_or_default().to_owned();
+        warning.contains("1 of the 1 crops").then_some(warning)
+    };
+    assert_eq!(box_warning(&from_boxes), None, "{from_boxes}");
+    let masked_run = dir.path().join("masked-run");
+    copy_dir(&run, &masked_run);
+    let mut info = read_json(&masked_run.join("run.json"));
+    info["crop"] = "mask".into();
+    std::fs::write(masked_run.join("run.json"), info.to_string()).unwrap();
+    let mut warned = eval(&masked_run, &root, &dir.path().join("warned.json"), &[]);
+    let warning = box_warning(&warned).expect("a warning of box crops");
+    assert!(
+        warning.contains("bbox_visib") && warning.contains("mask_visib"),
+        "{warning}"
+    );
+    warned.as_object_mut().unwrap().remove("warning");
+    let mut unwarned = from_boxes.clone();
+    unwarned.as_object_mut().unwrap().remove("warning");
+    assert_eq!(warned, unwarned);
+
     // Masks that fill the same boxes, cropped as masks: the same scores.
     let masks = scene(&root).join("mask_visib");
     std::fs::create_dir_all(&masks).unwrap();

@@ -416,6 +416,7 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
     } else {
         (Vec::new(), None)
     };
+    let warning = warning(request, &info, &examples, scores.under_resolution);
     Ok(EvalResult {
         object: info.object,
         obj_id: info.obj_id,
@@ -438,23 +439,49 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
         maad_deg: scores.maad_deg,
         recall_maad_deg: scores.recall_maad_deg,
         under_resolution: scores.under_resolution,
-        warning: (scores.under_resolution > UNDER_RESOLUTION_LIMIT).then(|| {
-            format!(
-                "level {} is too coarse for this model: its heaviest cells' mass changes by a \
-                 factor of {:.1} when they are split (under-resolution {:.2} > {UNDER_RESOLUTION_LIMIT}), \
-                 so LLH, MAAD and Recall MAAD are unreliable; score at --level {} or finer",
-                request.level,
-                scores.under_resolution.exp(),
-                scores.under_resolution,
-                request.level + 1
-            )
-        }),
+        warning,
         translation,
         pose,
         accuracy,
         instances,
         repaired_rotations: examples.repairs,
     })
+}
+
+/// Why the scores of `request` may mislead, if they may: a grid level too coarse for the
+/// model's sharpness (its mean `under_resolution`), or crops cut around boxes, clutter and all,
+/// for a model trained on masked crops, black off the object.
+fn warning(
+    request: &EvalRequest,
+    info: &RunInfo,
+    examples: &Examples,
+    under_resolution: f64,
+) -> Option<String> {
+    let mut warnings = Vec::new();
+    if under_resolution > UNDER_RESOLUTION_LIMIT {
+        warnings.push(format!(
+            "level {} is too coarse for this model: its heaviest cells' mass changes by a \
+             factor of {:.1} when they are split (under-resolution {under_resolution:.2} > \
+             {UNDER_RESOLUTION_LIMIT}), so LLH, MAAD and Recall MAAD are unreliable; score at \
+             --level {} or finer",
+            request.level,
+            under_resolution.exp(),
+            request.level + 1
+        ));
+    }
+    if info.crop != CropSource::Box && examples.box_crops > 0 {
+        warnings.push(format!(
+            "{} of the {} crops of split {:?} are cut around the instance's box (bbox_visib), \
+             everything inside it, for want of a visible mask (mask_visib/), while the model \
+             was trained on masked crops, black off the object: it reads such crops poorly \
+             (docs/results.md, \"Another real dataset\"); give the split visible masks, a \
+             segmenter's or a detector's, to score it on what it was trained to see",
+            examples.box_crops,
+            examples.instances.len(),
+            request.split
+        ));
+    }
+    (!warnings.is_empty()).then(|| warnings.join("; and "))
 }
 
 /// Object `obj_id`'s mesh in `dataset`, at `scale` metres per mesh unit (BOP meshes are in

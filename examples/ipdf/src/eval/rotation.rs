@@ -281,6 +281,7 @@ mod tests {
             instances: examples.instances.clone(),
             visible_fractions: examples.visible_fractions.clone(),
             repairs: Default::default(),
+            box_crops: 0,
         };
         let picks = Picks {
             estimates: true,

@@ -375,6 +375,7 @@ mod tests {
                 .collect(),
             visible_fractions: vec![None; images.len()],
             repairs: Default::default(),
+            box_crops: 0,
         }
     }
 
