@@ -481,6 +481,9 @@ impl MeshReport {
             out += &markdown("Real frames", &real.instances, accuracy);
             out += "\n";
         }
+        if let Some(warning) = self.real.as_ref().and_then(|real| real.warning.as_ref()) {
+            out += &format!("Warning: {warning}.\n\n");
+        }
         out += "\nSeconds per stage:";
         for (stage, seconds) in &self.timing_s {
             out += &format!(" {stage} {seconds:.0},");
