@@ -281,8 +281,7 @@ pub fn load_examples(dataset: &BopDataset, options: &ExampleOptions) -> Result<E
         let reason = format!("no labelled instance of {place}");
         return Err(Error::option("dataset", reason));
     }
-    let (pending, crops): (Vec<Pending>, Vec<(FileCrop, bool)>) =
-        crop_instances(dataset, options, pending)?;
+    let (pending, crops): (Vec<Pending>, Vec<CutCrop>) = crop_instances(dataset, options, pending)?;
     let box_crops = crops.iter().filter(|(_, boxed)| *boxed).count();
     let crops: Vec<FileCrop> = crops.into_iter().map(|(crop, _)| crop).collect();
     if pending.is_empty() {
@@ -492,6 +491,9 @@ fn read_scene_label_sets(
     read_pseudo_gt(path)
 }
 
+/// A crop, and whether it was cut around a box rather than a mask.
+type CutCrop = (FileCrop, bool);
+
 /// The crops of `pending`, in parallel, each with whether it was cut around a box; an instance
 /// whose visible mask or box is empty (fully occluded: BOP keeps them, with `visib_fract` 0) is
 /// left out, like one below the visible fraction.
@@ -499,8 +501,8 @@ fn crop_instances(
     dataset: &BopDataset,
     options: &ExampleOptions,
     pending: Vec<Pending>,
-) -> Result<(Vec<Pending>, Vec<(FileCrop, bool)>), Error> {
-    let crops: Vec<Option<(FileCrop, bool)>> = pending
+) -> Result<(Vec<Pending>, Vec<CutCrop>), Error> {
+    let crops: Vec<Option<CutCrop>> = pending
         .par_iter()
         .map(|p| crop_instance(dataset, options, p))
         .collect::<Result<_, Error>>()?;
@@ -517,7 +519,7 @@ fn crop_instance(
     dataset: &BopDataset,
     options: &ExampleOptions,
     p: &Pending,
-) -> Result<Option<(FileCrop, bool)>, Error> {
+) -> Result<Option<CutCrop>, Error> {
     let scene = dataset.scene(&options.split, p.at.scene_id);
     let rgb = scene.rgb_path(p.at.im_id);
     let mask = scene.visible_mask_path(p.at.im_id, p.at.instance);
