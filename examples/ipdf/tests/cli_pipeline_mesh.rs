@@ -293,6 +293,30 @@ fn the_quick_preset_trains_the_deep_small_cnn_and_the_encoder_flag_overrides_it(
 }
 
 #[test]
+fn a_real_split_without_masks_is_warned_of_before_the_renders() {
+    let setup = Setup::new();
+    // A file in the way of the renders stops each run right after its checks.
+    std::fs::create_dir_all(&setup.out).unwrap();
+    std::fs::write(setup.out.join("data"), "in the way").unwrap();
+    let stderr = |real: &Path| {
+        let extra = ["--real", s(real), "--obj-id", "5"];
+        std::fs::remove_file(setup.out.join("pipeline_config.json")).ok();
+        let output = ipdf(&setup.command(&setup.camera, &extra));
+        assert!(!output.status.success());
+        String::from_utf8(output.stderr).unwrap()
+    };
+    // LM-O's real frame has boxes and no masks; YCB-Video's has masks.
+    let lmo = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/lmo_real");
+    let warned = stderr(&lmo);
+    assert!(
+        warned.contains("warning: split \"test\"") && warned.contains("no visible masks"),
+        "{warned}"
+    );
+    let quiet = stderr(&setup.root);
+    assert!(!quiet.contains("no visible masks"), "{quiet}");
+}
+
+#[test]
 fn a_mesh_run_refuses_what_it_cannot_use() {
     let setup = Setup::new();
     let camera = &setup.camera;

@@ -159,6 +159,9 @@ pub fn run_mesh_pipeline(
     check_and_record(out, &config)?;
     let (data, model) = (out.join(DATA), out.join(MODEL));
     let real = request.real.as_ref();
+    if let Some(real) = real {
+        warn_without_masks(real)?;
+    }
     let mut stages = StageTimes::of(out)?;
     stages.run("synth", || synthesize_renders(&data, plan, request, seed))?;
     if let Some(real) = real {
@@ -182,6 +185,30 @@ pub fn run_mesh_pipeline(
         config,
     };
     write_report(out, &report, &report.to_markdown(), report.timing_s.clone())
+}
+
+/// Warns, before anything is rendered, when no scene of the real split has masks
+/// (`mask_visib/`, or `mask/`): its instances will be scored on crops cut around their boxes,
+/// clutter included, which the models, trained on masked crops, read poorly.
+fn warn_without_masks(real: &RealSplit) -> Result<(), Error> {
+    let dataset = BopDataset::new(&real.dataset);
+    let masked = dataset.scene_ids(&real.split)?.into_iter().any(|id| {
+        let scene = dataset.scene(&real.split, id);
+        ["mask_visib", "mask"]
+            .iter()
+            .any(|folder| scene.dir.join(folder).is_dir())
+    });
+    if !masked {
+        eprintln!(
+            "warning: split {:?} of {} has no visible masks (mask_visib/): its instances will \
+             be scored on crops cut around their boxes, clutter included, which models trained \
+             on masked renders read poorly; give it a segmenter's masks for scores that mean \
+             what they do on masks",
+            real.split,
+            real.dataset.display()
+        );
+    }
+    Ok(())
 }
 
 /// Stage 1: the training and validation renders (complete scenes are skipped).
