@@ -253,6 +253,12 @@ impl SceneDir {
         }
     }
 
+    /// Whether the scene has a folder of masks that [`SceneDir::visible_mask_path`] reads:
+    /// `mask_visib/`, or `mask/`.
+    pub fn has_masks(&self) -> bool {
+        self.dir.join("mask_visib").is_dir() || self.dir.join("mask").is_dir()
+    }
+
     /// The visible part of instance `instance`: `mask_visib/{im_id:06}_{instance:06}.png`.
     pub fn mask_visib_path(&self, im_id: u32, instance: usize) -> PathBuf {
         self.dir

@@ -369,3 +369,20 @@ fn a_dataset_is_copied_file_for_file() {
     let error = bop_dataset::copy_dataset(&missing, &dir.path().join("other")).unwrap_err();
     assert_eq!(error.path, missing);
 }
+
+#[test]
+fn a_scene_has_masks_where_it_has_a_visible_or_a_full_mask_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = BopDataset::new(dir.path()).scene("test", 2);
+    std::fs::create_dir_all(scene.dir.join("rgb")).unwrap();
+    assert!(!scene.has_masks());
+    // A file named like the folder is not one.
+    std::fs::write(scene.dir.join("mask_visib"), "").unwrap();
+    assert!(!scene.has_masks());
+    std::fs::create_dir_all(scene.dir.join("mask")).unwrap();
+    assert!(scene.has_masks());
+    std::fs::remove_dir(scene.dir.join("mask")).unwrap();
+    std::fs::remove_file(scene.dir.join("mask_visib")).unwrap();
+    std::fs::create_dir_all(scene.dir.join("mask_visib")).unwrap();
+    assert!(scene.has_masks());
+}

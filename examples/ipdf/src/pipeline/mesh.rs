@@ -192,12 +192,10 @@ pub fn run_mesh_pipeline(
 /// clutter included, which the models, trained on masked crops, read poorly.
 fn warn_without_masks(real: &RealSplit) -> Result<(), Error> {
     let dataset = BopDataset::new(&real.dataset);
-    let masked = dataset.scene_ids(&real.split)?.into_iter().any(|id| {
-        let scene = dataset.scene(&real.split, id);
-        ["mask_visib", "mask"]
-            .iter()
-            .any(|folder| scene.dir.join(folder).is_dir())
-    });
+    let masked = dataset
+        .scene_ids(&real.split)?
+        .into_iter()
+        .any(|id| dataset.scene(&real.split, id).has_masks());
     if !masked {
         eprintln!(
             "warning: split {:?} of {} has no visible masks (mask_visib/): its instances will \
