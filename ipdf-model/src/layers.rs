@@ -141,22 +141,32 @@ impl Linear {
     }
 }
 
-/// Batch normalisation over the channels of `[B, C, H, W]` (momentum 0.1, ε = 1e-5, as torch).
+/// Batch normalisation over the channels of `[B, C, H, W]` (momentum 0.1, ε = 1e-5, as torch,
+/// unless built [`BatchNorm2d::with_eps`]).
 #[derive(Debug)]
 pub(crate) struct BatchNorm2d {
     weight: Tensor,
     bias: Tensor,
     running_mean: Tensor,
     running_var: Tensor,
+    eps: f64,
+    momentum: f64,
 }
 
 impl BatchNorm2d {
     pub(crate) fn new(path: nn::Path, channels: i64) -> Self {
+        Self::with_eps(path, channels, 1e-5, 0.1)
+    }
+
+    /// Another ε and running-statistics momentum (torch's convention: the new batch's weight).
+    pub(crate) fn with_eps(path: nn::Path, channels: i64, eps: f64, momentum: f64) -> Self {
         Self {
             weight: path.ones("weight", &[channels]),
             bias: path.zeros("bias", &[channels]),
             running_mean: path.zeros_no_train("running_mean", &[channels]),
             running_var: path.ones_no_train("running_var", &[channels]),
+            eps,
+            momentum,
         }
     }
 
@@ -167,8 +177,8 @@ impl BatchNorm2d {
             Some(&self.running_mean),
             Some(&self.running_var),
             train,
-            0.1,
-            1e-5,
+            self.momentum,
+            self.eps,
             false,
         )
     }

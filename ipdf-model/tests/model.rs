@@ -25,6 +25,7 @@ fn every_encoder_gives_one_score_per_query() {
         (EncoderKind::Resnet18, 64, 512),
         (EncoderKind::Resnet18Stage3, 64, 256 * 4 * 4),
         (EncoderKind::ConvnextTiny, 64, 768),
+        (EncoderKind::EfficientnetLite0, 64, 1280),
     ] {
         let config = ModelConfig {
             encoder,

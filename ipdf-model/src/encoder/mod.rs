@@ -1,5 +1,6 @@
 //! Image encoders: an RGB crop `[B, 3, S, S]` (ImageNet-normalised) to a feature `[B, D]`.
 mod convnext;
+mod efficientnet;
 mod resnet;
 mod small_cnn;
 
@@ -8,6 +9,7 @@ use tch::{Tensor, nn};
 
 use crate::layers::ParamInit;
 use convnext::ConvNextTiny;
+use efficientnet::EfficientNetLite0;
 use resnet::{ResNet18, ResNetCut};
 use small_cnn::SmallCnn;
 
@@ -24,6 +26,11 @@ pub enum EncoderKind {
     Resnet18Stage3,
     /// ConvNeXt-Tiny without its final linear layer: 768-d.
     ConvnextTiny,
+    /// EfficientNet-Lite0 without its classifier: 1280-d; ImageNet weights in the
+    /// `efficientnet_pytorch` names (`scripts/setup-pretrained.sh`) make it the pretrained CPU
+    /// encoder (a tenth of ResNet-18's operations per crop).
+    #[serde(rename = "efficientnet-lite0")]
+    EfficientnetLite0,
     /// Four stride-2 3×3 convolutions (32–256 channels) and global pooling: 256-d; for quick
     /// CPU runs.
     SmallCnn,
@@ -35,21 +42,23 @@ pub enum EncoderKind {
 
 impl EncoderKind {
     /// Every encoder, in the order of the command line's list.
-    pub const ALL: [Self; 5] = [
+    pub const ALL: [Self; 6] = [
         Self::Resnet18,
         Self::Resnet18Stage3,
         Self::ConvnextTiny,
+        Self::EfficientnetLite0,
         Self::SmallCnn,
         Self::SmallCnnDeep,
     ];
 
-    /// The command line's name: `resnet18`, `resnet18-2`, `convnext-tiny`, `small-cnn`,
-    /// `small-cnn-deep`.
+    /// The command line's name: `resnet18`, `resnet18-2`, `convnext-tiny`,
+    /// `efficientnet-lite0`, `small-cnn`, `small-cnn-deep`.
     pub const fn name(self) -> &'static str {
         match self {
             Self::Resnet18 => "resnet18",
             Self::Resnet18Stage3 => "resnet18-2",
             Self::ConvnextTiny => "convnext-tiny",
+            Self::EfficientnetLite0 => "efficientnet-lite0",
             Self::SmallCnn => "small-cnn",
             Self::SmallCnnDeep => "small-cnn-deep",
         }
@@ -72,6 +81,7 @@ impl std::fmt::Display for EncoderKind {
 pub(crate) enum Encoder {
     ResNet(ResNet18),
     ConvNext(ConvNextTiny),
+    EfficientNet(EfficientNetLite0),
     Small(SmallCnn),
 }
 
@@ -83,6 +93,9 @@ impl Encoder {
                 Self::ResNet(ResNet18::new(path, ResNetCut::Stage3, init))
             }
             EncoderKind::ConvnextTiny => Self::ConvNext(ConvNextTiny::new(path, init)),
+            EncoderKind::EfficientnetLite0 => {
+                Self::EfficientNet(EfficientNetLite0::new(path, init))
+            }
             EncoderKind::SmallCnn => Self::Small(SmallCnn::new(path, false, init)),
             EncoderKind::SmallCnnDeep => Self::Small(SmallCnn::new(path, true, init)),
         }
@@ -93,6 +106,7 @@ impl Encoder {
         match self {
             Self::ResNet(net) => net.feature_dim(input_size),
             Self::ConvNext(_) => ConvNextTiny::FEATURES,
+            Self::EfficientNet(_) => EfficientNetLite0::FEATURES,
             Self::Small(_) => SmallCnn::FEATURES,
         }
     }
@@ -102,6 +116,7 @@ impl Encoder {
         match self {
             Self::ResNet(net) => net.forward_t(images, train),
             Self::ConvNext(net) => net.forward(images),
+            Self::EfficientNet(net) => net.forward_t(images, train),
             Self::Small(net) => net.forward_t(images, train),
         }
     }
