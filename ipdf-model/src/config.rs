@@ -26,6 +26,17 @@ pub struct ModelConfig {
     /// that names none is in the camera's.
     #[serde(default, skip_serializing_if = "RotationFrame::is_camera")]
     pub rotation_frame: RotationFrame,
+    /// How many of the encoder's first blocks keep their starting (pretrained) weights and
+    /// batch-norm statistics: EfficientNet-Lite0's stem and its first N of 16 MBConv blocks
+    /// then run without gradients, in inference mode (Hinterstoisser et al. 2018: features
+    /// learnt on real images, frozen, carry a model trained on renders to real images). 0, the
+    /// default, trains every layer; other encoders take only 0.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub frozen_blocks: usize,
+}
+
+fn is_zero(value: &usize) -> bool {
+    *value == 0
 }
 
 impl Default for ModelConfig {
@@ -38,6 +49,7 @@ impl Default for ModelConfig {
             head_sizes: vec![256; 4],
             seed: 0,
             rotation_frame: RotationFrame::Camera,
+            frozen_blocks: 0,
         }
     }
 }
@@ -81,6 +93,16 @@ impl ModelConfig {
                 format!("{:?}: need one or more widths in 1..=8192", self.head_sizes),
             ));
         }
+        let blocks = self.encoder.freezable_blocks();
+        if self.frozen_blocks > blocks {
+            return Err(ModelError::option(
+                "frozen_blocks",
+                format!(
+                    "{} is more than the {blocks} blocks {} can keep frozen",
+                    self.frozen_blocks, self.encoder
+                ),
+            ));
+        }
         Ok(())
     }
 }
@@ -89,7 +111,7 @@ impl ModelConfig {
     /// Fails with [`ModelError::ConfigMismatch`] naming the first field where `found` (read
     /// from the checkpoint at `path`) differs from `self`.
     pub fn check_same(&self, found: &ModelConfig, path: &Path) -> Result<(), ModelError> {
-        let fields: [(&'static str, String, String); 6] = [
+        let fields: [(&'static str, String, String); 7] = [
             (
                 "encoder",
                 self.encoder.to_string(),
@@ -115,6 +137,11 @@ impl ModelConfig {
                 "rotation_frame",
                 self.rotation_frame.name().to_string(),
                 found.rotation_frame.name().to_string(),
+            ),
+            (
+                "frozen_blocks",
+                self.frozen_blocks.to_string(),
+                found.frozen_blocks.to_string(),
             ),
         ];
         match fields.into_iter().find(|(_, a, b)| a != b) {

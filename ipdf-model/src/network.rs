@@ -110,7 +110,7 @@ struct ImageInput {
 impl ImageInput {
     /// The encoder of `config` under `path` (torchvision parameter names), on `device`.
     fn new(path: nn::Path, config: &ModelConfig, init: &mut ParamInit, device: Device) -> Self {
-        let encoder = Encoder::new(path, config.encoder, init);
+        let encoder = Encoder::new(path, config.encoder, config.frozen_blocks, init);
         let feature_dim = encoder.feature_dim(config.input_size);
         let mean = Tensor::from_slice(&IMAGENET_MEAN)
             .reshape([1, 3, 1, 1])

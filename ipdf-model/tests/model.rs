@@ -446,3 +446,80 @@ fn models_that_read_other_crops_form_no_ensemble() {
     assert!(refused.contains("line-of-sight frame"), "{refused}");
     assert!(message(&two_members(3)).is_empty());
 }
+
+/// The variables of `trainer`'s model, copied.
+fn snapshot(trainer: &Trainer) -> std::collections::HashMap<String, Tensor> {
+    trainer
+        .model()
+        .var_store()
+        .variables()
+        .into_iter()
+        .map(|(name, tensor)| (name, tensor.detach().copy()))
+        .collect()
+}
+
+/// The encoder block (`Some(i)` for `encoder._blocks.i.…`, `None` for the stem) a variable of
+/// EfficientNet-Lite0 belongs to; other variables (the head, the encoder's last convolution)
+/// give `Some(usize::MAX)`.
+fn lite0_block(name: &str) -> Option<usize> {
+    if name.starts_with("encoder._conv_stem") || name.starts_with("encoder._bn0") {
+        return None;
+    }
+    Some(
+        name.strip_prefix("encoder._blocks.")
+            .and_then(|rest| rest.split('.').next())
+            .and_then(|index| index.parse().ok())
+            .unwrap_or(usize::MAX),
+    )
+}
+
+#[test]
+fn frozen_blocks_keep_their_weights_and_statistics() {
+    let labels = vec![vec![UnitQuaternion::identity()]; 4];
+    for frozen in [0, 8] {
+        let config = ModelConfig {
+            encoder: EncoderKind::EfficientnetLite0,
+            input_size: 32,
+            head_sizes: vec![16, 16],
+            frozen_blocks: frozen,
+            ..ModelConfig::default()
+        };
+        let model = ImplicitPdf::new(config, Device::Cpu).unwrap();
+        let mut trainer = Trainer::new(model, TrainOptions::default()).unwrap();
+        let before = snapshot(&trainer);
+        trainer.train_step(&images(4, 32, 5), &labels).unwrap();
+        let after = snapshot(&trainer);
+        for (name, old) in &before {
+            let changed = !old.equal(&after[name]);
+            // Adam moves every trained weight, the step's batch statistics every trained batch
+            // norm's running mean and variance.
+            let should_change = match lite0_block(name) {
+                None => frozen == 0,
+                Some(block) => block >= frozen,
+            };
+            assert_eq!(changed, should_change, "frozen {frozen}: {name}");
+        }
+    }
+}
+
+#[test]
+fn only_efficientnet_freezes_and_no_more_than_its_blocks() {
+    for (encoder, frozen, valid) in [
+        (EncoderKind::EfficientnetLite0, 16, true),
+        (EncoderKind::EfficientnetLite0, 17, false),
+        (EncoderKind::Resnet18, 1, false),
+        (EncoderKind::SmallCnn, 0, true),
+    ] {
+        let config = ModelConfig {
+            encoder,
+            input_size: 32,
+            frozen_blocks: frozen,
+            ..ModelConfig::default()
+        };
+        let result = ImplicitPdf::new(config, Device::Cpu);
+        assert_eq!(result.is_ok(), valid, "{encoder} with {frozen} frozen");
+        if let Err(error) = result {
+            assert!(error.to_string().contains("frozen_blocks"), "{error}");
+        }
+    }
+}

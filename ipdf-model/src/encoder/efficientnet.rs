@@ -23,6 +23,9 @@ struct Stage {
     output: i64,
 }
 
+/// The MBConv blocks of all stages.
+pub(crate) const BLOCKS: usize = 16;
+
 const STAGES: [Stage; 7] = [
     stage(1, 3, 1, 1, 32, 16),
     stage(2, 3, 2, 6, 16, 24),
@@ -159,12 +162,15 @@ pub(crate) struct EfficientNetLite0 {
     stem: ConvNorm,
     blocks: Vec<MbConv>,
     head: ConvNorm,
+    /// The stem and this many first blocks run without gradients, in inference mode.
+    frozen: usize,
 }
 
 impl EfficientNetLite0 {
     pub(crate) const FEATURES: i64 = 1280;
 
-    pub(crate) fn new(path: nn::Path, init: &mut ParamInit) -> Self {
+    /// The network with its stem and first `frozen` blocks frozen (at most [`BLOCKS`]).
+    pub(crate) fn new(path: nn::Path, frozen: usize, init: &mut ParamInit) -> Self {
         let stem = ConvNorm::new(
             &path,
             ("_conv_stem", "_bn0"),
@@ -196,13 +202,29 @@ impl EfficientNetLite0 {
             ConvShape::plain(320, Self::FEATURES, 1, 1, 0),
             init,
         );
-        Self { stem, blocks, head }
+        Self {
+            stem,
+            blocks,
+            head,
+            frozen: frozen.min(BLOCKS),
+        }
     }
 
     /// The last feature map before pooling, `[B, 1280, ⌈S/32⌉, ⌈S/32⌉]`.
     fn features(&self, images: &Tensor, train: bool) -> Tensor {
-        let mut xs = self.stem.forward_t(images, train).relu6();
-        for block in &self.blocks {
+        let (frozen, trained) = self.blocks.split_at(self.frozen);
+        let mut xs = if self.frozen == 0 {
+            self.stem.forward_t(images, train).relu6()
+        } else {
+            tch::no_grad(|| {
+                let mut xs = self.stem.forward_t(images, false).relu6();
+                for block in frozen {
+                    xs = block.forward_t(&xs, false);
+                }
+                xs
+            })
+        };
+        for block in trained {
             xs = block.forward_t(&xs, train);
         }
         self.head.forward_t(&xs, train).relu6()
@@ -279,7 +301,7 @@ mod tests {
             path.display()
         );
         let mut store = nn::VarStore::new(Device::Cpu);
-        let net = EfficientNetLite0::new(store.root(), &mut ParamInit::new(0));
+        let net = EfficientNetLite0::new(store.root(), 0, &mut ParamInit::new(0));
         let mut saved = read_tensors(&path, Device::Cpu).unwrap();
         if pretrained {
             tch::no_grad(|| {

@@ -64,6 +64,15 @@ impl EncoderKind {
         }
     }
 
+    /// How many blocks of the encoder [`crate::ModelConfig::frozen_blocks`] may freeze:
+    /// EfficientNet-Lite0's 16 MBConv blocks (with its stem); none of the others'.
+    pub const fn freezable_blocks(self) -> usize {
+        match self {
+            Self::EfficientnetLite0 => efficientnet::BLOCKS,
+            _ => 0,
+        }
+    }
+
     /// The encoder called `name` (see [`EncoderKind::name`]).
     pub fn from_name(name: &str) -> Option<Self> {
         Self::ALL.into_iter().find(|kind| kind.name() == name)
@@ -86,7 +95,14 @@ pub(crate) enum Encoder {
 }
 
 impl Encoder {
-    pub(crate) fn new(path: nn::Path, kind: EncoderKind, init: &mut ParamInit) -> Self {
+    /// The encoder of `kind` with its first `frozen` blocks frozen (see
+    /// [`crate::ModelConfig::frozen_blocks`]; the configuration's check keeps it in range).
+    pub(crate) fn new(
+        path: nn::Path,
+        kind: EncoderKind,
+        frozen: usize,
+        init: &mut ParamInit,
+    ) -> Self {
         match kind {
             EncoderKind::Resnet18 => Self::ResNet(ResNet18::new(path, ResNetCut::Pooled, init)),
             EncoderKind::Resnet18Stage3 => {
@@ -94,7 +110,7 @@ impl Encoder {
             }
             EncoderKind::ConvnextTiny => Self::ConvNext(ConvNextTiny::new(path, init)),
             EncoderKind::EfficientnetLite0 => {
-                Self::EfficientNet(EfficientNetLite0::new(path, init))
+                Self::EfficientNet(EfficientNetLite0::new(path, frozen, init))
             }
             EncoderKind::SmallCnn => Self::Small(SmallCnn::new(path, false, init)),
             EncoderKind::SmallCnnDeep => Self::Small(SmallCnn::new(path, true, init)),

@@ -57,7 +57,8 @@ pub struct TrainArgs {
     /// The object, by name (`dataset_info.json` of `ipdf synth`).
     #[arg(long, conflicts_with = "obj_id")]
     pub object: Option<String>,
-    /// Image encoder: resnet18, resnet18-2, convnext-tiny, small-cnn, small-cnn-deep.
+    /// Image encoder: resnet18, resnet18-2, convnext-tiny, efficientnet-lite0, small-cnn,
+    /// small-cnn-deep.
     #[arg(long, default_value = "resnet18", value_parser = parse_encoder)]
     pub encoder: EncoderKind,
     /// Side of the square input crop (pixels).
@@ -118,9 +119,14 @@ pub struct TrainArgs {
     /// --out/member-k from seed + k − 1, listed in --out/ensemble.json. Each costs a training.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..=MAX_MEMBERS as u64))]
     pub members: u64,
-    /// Pretrained encoder weights (.safetensors with torchvision names).
+    /// Pretrained encoder weights (.safetensors with torchvision names; efficientnet-lite0's
+    /// ImageNet weights: .pretrained/efficientnet-lite0.safetensors, from `make setup`).
     #[arg(long)]
     pub pretrained: Option<PathBuf>,
+    /// Keep the encoder's stem and first N blocks as --pretrained gives them (no gradients,
+    /// batch norm in inference mode): efficientnet-lite0 only, N up to 16.
+    #[arg(long, default_value_t = 0, requires = "pretrained")]
+    pub freeze_encoder: usize,
 }
 
 /// Runs `ipdf train`; returns the last epoch's figures ([`TrainResult`]; for `--target pose`
@@ -159,6 +165,7 @@ pub fn run(args: &TrainArgs, seed: u64) -> Result<serde_json::Value> {
             head_sizes: args.head.clone(),
             seed,
             rotation_frame: args.rotation_frame,
+            frozen_blocks: args.freeze_encoder,
             ..ModelConfig::default()
         },
         epochs: args.epochs,
