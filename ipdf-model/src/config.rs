@@ -95,12 +95,17 @@ impl ModelConfig {
         }
         let blocks = self.encoder.freezable_blocks();
         if self.frozen_blocks > blocks {
+            let reason = if blocks == 0 {
+                format!(
+                    "{} freezes no block (efficientnet-lite0 does)",
+                    self.encoder
+                )
+            } else {
+                format!("{} has {blocks} blocks to freeze", self.encoder)
+            };
             return Err(ModelError::option(
                 "frozen_blocks",
-                format!(
-                    "{} is more than the {blocks} blocks {} can keep frozen",
-                    self.frozen_blocks, self.encoder
-                ),
+                format!("{}: {reason}", self.frozen_blocks),
             ));
         }
         Ok(())

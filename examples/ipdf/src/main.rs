@@ -110,12 +110,21 @@ fn reexecute_with_environment() {
         .exec();
 }
 
-/// clap's error in one line: its first line (which names the bad flag or value), its tips (the
-/// nearest command or flag), and the `--help` that lists the possible values: the subcommand's
-/// own where one was named.
+/// clap's error in one line: its first paragraph (which names the bad flag or value, or lists
+/// the missing arguments on the lines after it), its tips (the nearest command or flag), and
+/// the `--help` that lists the possible values: the subcommand's own where one was named.
 fn usage_error(error: &clap::Error) -> String {
     let text = error.render().to_string();
-    let cause = text.lines().next().unwrap_or("error: bad arguments");
+    let cause: Vec<&str> = text
+        .lines()
+        .take_while(|line| !line.trim().is_empty())
+        .map(str::trim)
+        .collect();
+    let cause = if cause.is_empty() {
+        "error: bad arguments".to_string()
+    } else {
+        cause.join(" ")
+    };
     let tips: String = text
         .lines()
         .filter_map(|line| line.trim().strip_prefix("tip: "))

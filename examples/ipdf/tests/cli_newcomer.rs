@@ -86,6 +86,23 @@ fn usage_errors_name_the_nearest_command_and_the_subcommands_help() {
         &["--seed", "1", "train", "--datset", "x"],
         "ipdf train --help",
     );
+    // A flag that needs another names the one missing.
+    assert_fails(
+        &[
+            "train",
+            "--dataset",
+            "x",
+            "--labels",
+            "single",
+            "--out",
+            "y",
+            "--encoder",
+            "efficientnet-lite0",
+            "--freeze-encoder",
+            "2",
+        ],
+        "not provided: --pretrained <PRETRAINED> (see ipdf train --help)",
+    );
 }
 
 #[test]
