@@ -23,9 +23,6 @@ struct Stage {
     output: i64,
 }
 
-/// The MBConv blocks of all stages.
-pub(crate) const BLOCKS: usize = 16;
-
 const STAGES: [Stage; 7] = [
     stage(1, 3, 1, 1, 32, 16),
     stage(2, 3, 2, 6, 16, 24),
@@ -35,6 +32,16 @@ const STAGES: [Stage; 7] = [
     stage(4, 5, 2, 6, 112, 192),
     stage(1, 3, 1, 6, 192, 320),
 ];
+
+/// The MBConv blocks of all stages (16).
+pub(crate) const BLOCKS: usize = {
+    let (mut count, mut i) = (0, 0);
+    while i < STAGES.len() {
+        count += STAGES[i].repeats;
+        i += 1;
+    }
+    count
+};
 
 const fn stage(
     repeats: usize,
