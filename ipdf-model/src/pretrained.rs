@@ -52,7 +52,7 @@ fn load_encoder(
             .ok_or_else(|| {
                 ModelError::checkpoint(
                     path,
-                    format!("{name}: missing (expected torchvision {encoder} weights)"),
+                    format!("{name}: missing (the file holds no {encoder} weights)"),
                 )
             })?;
         copy_checked(variable, &tensor, name, path)?;

@@ -185,8 +185,17 @@ fn main() -> ExitCode {
             ExitCode::SUCCESS
         }
         Err(error) => {
-            // One line, whatever the causes' own formatting.
-            let message = format!("{error:#}");
+            // One line, whatever the causes' own formatting; a cause its error already ends
+            // with (an error that shows its source) once.
+            let mut message = String::new();
+            for cause in error.chain() {
+                let text = cause.to_string();
+                if message.is_empty() {
+                    message = text;
+                } else if !message.ends_with(&text) {
+                    message = format!("{message}: {text}");
+                }
+            }
             let words: Vec<&str> = message.split_whitespace().collect();
             eprintln!("error: {}", words.join(" "));
             ExitCode::FAILURE

@@ -334,3 +334,142 @@ fn a_mesh_run_refuses_what_it_cannot_use() {
     assert_refused(&setup.words(&bad, &[]), "bad.json");
     assert!(!setup.out.exists());
 }
+
+/// EfficientNet-Lite0's ImageNet weights, as `make setup` converts them.
+fn imagenet_weights() -> PathBuf {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../.pretrained/efficientnet-lite0.safetensors");
+    assert!(
+        path.exists(),
+        "{} is missing: run scripts/setup-pretrained.sh (make test does)",
+        path.display()
+    );
+    path
+}
+
+/// The tensors of the last `model-*.safetensors` in `run`, by name.
+fn saved_tensors(run: &Path) -> std::collections::HashMap<String, tch::Tensor> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(run)
+        .unwrap()
+        .map(|entry| entry.unwrap().path())
+        .filter(|path| {
+            let name = path.file_name().unwrap().to_string_lossy();
+            name.starts_with("model-") && name.ends_with(".safetensors")
+        })
+        .collect();
+    files.sort();
+    let last = files
+        .last()
+        .unwrap_or_else(|| panic!("no model in {}", run.display()));
+    tch::Tensor::read_safetensors(last)
+        .unwrap()
+        .into_iter()
+        .collect()
+}
+
+#[test]
+fn pretrained_weights_start_both_models_and_their_frozen_blocks_stay_as_given() {
+    let setup = Setup::new();
+    let weights = imagenet_weights();
+    let extra = [
+        "--frames",
+        "24",
+        "--val-frames",
+        "4",
+        "--epochs",
+        "1",
+        "--steps-per-epoch",
+        "3",
+        "--encoder",
+        "efficientnet-lite0",
+        "--pretrained",
+        s(&weights),
+        "--freeze-encoder",
+        "16",
+        "--learning-rate",
+        "0.001",
+    ];
+    ipdf_json(&setup.command(&setup.camera, &extra));
+    let config = read_json(&setup.out.join("pipeline_config.json"));
+    assert_eq!(config["pretrained"], s(&weights));
+    assert_eq!(config["frozen_blocks"], 16);
+    assert_eq!(config["learning_rate"], 0.001);
+    assert_eq!(config["translation_learning_rate"], 0.001);
+    let report = std::fs::read_to_string(setup.out.join("report.md")).unwrap();
+    assert!(report.contains("(16 blocks frozen)"), "{report}");
+    // The oracle is the weights file itself: what is frozen is the file's to the bit, in the
+    // rotation and in the translation model, and what trains has moved away from it.
+    let imagenet: std::collections::HashMap<String, tch::Tensor> =
+        tch::Tensor::read_safetensors(&weights)
+            .unwrap()
+            .into_iter()
+            .collect();
+    for run in [setup.out.join("model"), setup.out.join("model/translation")] {
+        let checkpoint = read_json(&run.join("checkpoint.json"));
+        let model = &checkpoint["model"];
+        assert_eq!(model["frozen_blocks"], 16, "{}", run.display());
+        assert_eq!(model["encoder"], "efficientnet-lite0");
+        let saved = saved_tensors(&run);
+        for name in [
+            "_conv_stem.weight",
+            "_blocks.0._depthwise_conv.weight",
+            "_blocks.15._project_conv.weight",
+        ] {
+            let trained = &saved[&format!("encoder.{name}")];
+            assert!(
+                trained.equal(&imagenet[name]),
+                "{}: {name} moved",
+                run.display()
+            );
+        }
+        // The 1×1 convolution after the blocks is not frozen: it starts from the file and
+        // trains.
+        let head = &saved["encoder._conv_head.weight"];
+        assert!(
+            !head.equal(&imagenet["_conv_head.weight"]),
+            "{}",
+            run.display()
+        );
+    }
+}
+
+#[test]
+fn pretrained_weights_that_do_not_fit_are_refused_before_the_renders() {
+    let setup = Setup::new();
+    let weights = imagenet_weights();
+    // The preset's small CNN has no ImageNet weights: the file is named, nothing is rendered.
+    let small = setup.words(&setup.camera, &["--pretrained", s(&weights)]);
+    assert_refused(&small, "efficientnet-lite0.safetensors");
+    assert!(!setup.out.join("data").exists());
+    let missing = setup.dir.path().join("missing.safetensors");
+    let absent = setup.words(
+        &setup.camera,
+        &[
+            "--encoder",
+            "efficientnet-lite0",
+            "--pretrained",
+            s(&missing),
+        ],
+    );
+    assert_refused(&absent, "missing.safetensors: no such file");
+    // The cause is said once, though the error shows its source.
+    let stderr = String::from_utf8(ipdf(&absent).stderr).unwrap();
+    assert_eq!(stderr.matches("no such file").count(), 1, "{stderr}");
+    let too_many = setup.words(
+        &setup.camera,
+        &[
+            "--encoder",
+            "efficientnet-lite0",
+            "--pretrained",
+            s(&weights),
+            "--freeze-encoder",
+            "17",
+        ],
+    );
+    assert_refused(&too_many, "frozen_blocks");
+    assert_refused(
+        &setup.words(&setup.camera, &["--learning-rate", "0"]),
+        "a learning rate over 0",
+    );
+    assert!(!setup.out.join("data").exists());
+}

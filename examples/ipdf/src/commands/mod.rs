@@ -61,6 +61,14 @@ pub fn parse_appearance_margin(text: &str) -> Result<f64, String> {
     }
 }
 
+/// A peak learning rate: a positive number, refused before any work.
+pub fn parse_learning_rate(text: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(rate) if rate.is_finite() && rate > 0.0 => Ok(rate),
+        _ => Err(format!("{text}: a learning rate over 0")),
+    }
+}
+
 /// The object of a `--mesh` file in `scale` metres per unit, its repairs warned about, one of
 /// an implausible size (a `--mesh-scale` mistake) refused.
 pub fn load_mesh(path: &std::path::Path, scale: f64) -> anyhow::Result<synth_data::SynthObject> {

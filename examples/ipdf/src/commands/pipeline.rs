@@ -58,6 +58,22 @@ pub struct PipelineArgs {
     /// (`ipdf train --encoder`).
     #[arg(long, value_parser = parse_encoder)]
     pub encoder: Option<EncoderKind>,
+    /// Weights the encoder starts from, for the rotation and the translation model (`ipdf
+    /// train --pretrained`; --encoder efficientnet-lite0's ImageNet weights:
+    /// .pretrained/efficientnet-lite0.safetensors, from `make setup`).
+    #[arg(long, requires = "mesh")]
+    pub pretrained: Option<PathBuf>,
+    /// Keep the encoder's stem and first N blocks as --pretrained gives them (`ipdf train
+    /// --freeze-encoder`).
+    #[arg(long, requires = "pretrained")]
+    pub freeze_encoder: Option<usize>,
+    /// Override the preset's peak learning rate (of the translation models too, unless
+    /// --translation-learning-rate is given).
+    #[arg(long, value_parser = super::parse_learning_rate)]
+    pub learning_rate: Option<f64>,
+    /// Override the preset's peak learning rate of the translation models.
+    #[arg(long, value_parser = super::parse_learning_rate)]
+    pub translation_learning_rate: Option<f64>,
     /// Override the preset's steps per epoch.
     #[arg(long)]
     pub steps_per_epoch: Option<u64>,
@@ -169,6 +185,13 @@ fn plan(args: &PipelineArgs, preset: Plan) -> Plan {
             .unwrap_or(preset.translation_epochs),
         steps_per_epoch: args.steps_per_epoch.unwrap_or(preset.steps_per_epoch),
         encoder: args.encoder.unwrap_or(preset.encoder),
+        learning_rate: args.learning_rate.unwrap_or(preset.learning_rate),
+        translation_learning_rate: args
+            .translation_learning_rate
+            .or(args.learning_rate)
+            .unwrap_or(preset.translation_learning_rate),
+        pretrained: args.pretrained.clone().or(preset.pretrained),
+        frozen_blocks: args.freeze_encoder.unwrap_or(preset.frozen_blocks),
         ..preset
     }
 }

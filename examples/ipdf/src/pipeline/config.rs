@@ -1,7 +1,7 @@
 //! What a pipeline run does: the presets, the plan with its overrides, and
 //! `pipeline_config.json`, which records the settings a run folder was started with so that a
 //! rerun with other settings is refused rather than mixed in.
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use bop_dataset::{read_json, write_json};
 use depth_render::SensorPreset;
@@ -84,6 +84,8 @@ impl Preset {
                 backbones: vec![],
                 rotation_frame: RotationFrame::Camera,
                 rotation_members: 1,
+                pretrained: None,
+                frozen_blocks: 0,
                 concurrent_models: 2,
             },
             Self::Paper => Plan {
@@ -110,6 +112,8 @@ impl Preset {
                 backbones: vec![EncoderKind::Resnet18Stage3, EncoderKind::ConvnextTiny],
                 rotation_frame: RotationFrame::Camera,
                 rotation_members: 1,
+                pretrained: None,
+                frozen_blocks: 0,
                 concurrent_models: 1,
             },
             Self::Gpu => Plan {
@@ -239,6 +243,14 @@ pub struct Plan {
     /// none.
     #[serde(default = "one", skip_serializing_if = "is_one")]
     pub rotation_members: usize,
+    /// Weights the encoder starts from (`ipdf train --pretrained`; `--mesh` runs): every model
+    /// of the plan's encoder loads them. `None`: the seeded initial weights.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pretrained: Option<PathBuf>,
+    /// The encoder's stem and first blocks kept as `pretrained` gives them (`ipdf train
+    /// --freeze-encoder`).
+    #[serde(default, skip_serializing_if = "is_zero_count")]
+    pub frozen_blocks: usize,
     /// Models trained at once, each on one CPU thread: small models leave a second core
     /// partly idle, so two at a time finish sooner than one on two threads. How, not what: not
     /// recorded.
@@ -258,6 +270,10 @@ pub(crate) fn is_one(value: &usize) -> bool {
 
 fn is_zero(value: &f64) -> bool {
     *value == 0.0
+}
+
+fn is_zero_count(value: &usize) -> bool {
+    *value == 0
 }
 
 /// `head` as `"64,64"`.
@@ -342,7 +358,7 @@ pub struct PipelineConfig {
 pub const CONFIG_FILE: &str = "pipeline_config.json";
 
 /// The keys of [`PipelineConfig`] set by command-line flags, and the flags.
-const FLAGS: [(&str, &str); 19] = [
+const FLAGS: [(&str, &str); 23] = [
     ("preset", "--preset"),
     ("seed", "--seed"),
     ("mesh", "--mesh"),
@@ -360,6 +376,10 @@ const FLAGS: [(&str, &str); 19] = [
     ("translation_epochs", "--translation-epochs"),
     ("steps_per_epoch", "--steps-per-epoch"),
     ("encoder", "--encoder"),
+    ("pretrained", "--pretrained"),
+    ("frozen_blocks", "--freeze-encoder"),
+    ("learning_rate", "--learning-rate"),
+    ("translation_learning_rate", "--translation-learning-rate"),
     ("rotation_frame", "--rotation-frame"),
     ("rotation_members", "--rotation-members"),
 ];

@@ -15,7 +15,7 @@ use bop_dataset::{
 };
 use depth_render::SensorPreset;
 use ipdf_model::rotation::{ImplicitPdf, MAX_EXTRA_VIEWS};
-use ipdf_model::{TRAIN_LOG, default_device};
+use ipdf_model::{TRAIN_LOG, default_device, load_backbone};
 use pseudo_label::LabelReport;
 use serde::{Deserialize, Serialize};
 use synth_data::{
@@ -156,6 +156,7 @@ pub fn run_mesh_pipeline(
         real: request.real.clone(),
         training_data: "randomised renders".into(),
     };
+    check_encoder(plan)?;
     check_and_record(out, &config)?;
     let (data, model) = (out.join(DATA), out.join(MODEL));
     let real = request.real.as_ref();
@@ -284,6 +285,18 @@ fn label_renders(out: &Path, data: &Path, plan: &Plan, seed: u64) -> Result<Labe
             coverage: scores.coverage,
         })
         .ok_or_else(|| Error::option("labels", format!("{}: no object", path.display())))
+}
+
+/// Refuses, before any render, an encoder the training would refuse: a freeze the encoder
+/// cannot make, or pretrained weights that do not fit it (a missing file, another network's).
+fn check_encoder(plan: &Plan) -> Result<(), Error> {
+    let config = train_request(plan, Path::new(""), Target::Rotation, 0).model;
+    config.validate()?;
+    if let Some(path) = &plan.pretrained {
+        let mut model = ImplicitPdf::new(config, tch::Device::Cpu)?;
+        load_backbone(&mut model, path)?;
+    }
+    Ok(())
 }
 
 /// Stage 3: the rotation model in `model` (each member of its ensemble) and its translation
@@ -431,7 +444,7 @@ impl MeshReport {
         let p = &c.plan;
         let mut out = format!(
             "# {}: a pose model from its mesh\n\n{} preset, seed {}: {} training and {} \
-             validation renders of `{}` (randomised: {}; {}), {}{} on {}-pixel crops, {} \
+             validation renders of `{}` (randomised: {}; {}), {}{}{} on {}-pixel crops, {} \
              epochs of {} steps of {} (translation {} epochs), occlusion{}.\n\n",
             self.object,
             p.preset.name(),
@@ -447,6 +460,15 @@ impl MeshReport {
             p.sensor
                 .map_or("clean depth".to_string(), |s| format!("{} depth", s.name())),
             p.encoder.name(),
+            match &p.pretrained {
+                Some(path) if p.frozen_blocks > 0 => format!(
+                    " from `{}` ({} blocks frozen)",
+                    path.display(),
+                    p.frozen_blocks
+                ),
+                Some(path) => format!(" from `{}`", path.display()),
+                None => String::new(),
+            },
             if p.rotation_members > 1 {
                 format!(" (rotation: an ensemble of {})", p.rotation_members)
             } else {

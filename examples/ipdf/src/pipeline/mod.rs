@@ -380,6 +380,7 @@ fn train_request(plan: &Plan, data: &Path, target: Target, seed: u64) -> TrainRe
             head_sizes: plan.head.clone(),
             seed,
             rotation_frame: plan.rotation_frame,
+            frozen_blocks: plan.frozen_blocks,
             ..ModelConfig::default()
         },
         epochs: plan.epochs_of(target),
@@ -392,7 +393,7 @@ fn train_request(plan: &Plan, data: &Path, target: Target, seed: u64) -> TrainRe
         query_level: plan.query_level,
         translation_queries: plan.translation_queries,
         continuous_steps: 36,
-        pretrained: None,
+        pretrained: plan.pretrained.clone(),
         // A translation model's validation refines an octree per crop (about 0.6 s per
         // epoch for 50 crops of the quick preset): 16 crops give the curve.
         validation_images: (target == Target::Translation).then_some(TRANSLATION_VALIDATION),
