@@ -58,6 +58,18 @@ fn assert_refused(args: &[&str], expected: &str) {
     assert!(stderr.trim_end().lines().count() <= 2, "{stderr}");
 }
 
+/// A miniature run's sizes: a few dozen renders, a few training steps.
+const MINIATURE: [&str; 8] = [
+    "--frames",
+    "24",
+    "--val-frames",
+    "4",
+    "--epochs",
+    "1",
+    "--steps-per-epoch",
+    "3",
+];
+
 /// A temporary folder holding the fixture's camera file, and the paths of a run in it.
 struct Setup {
     dir: tempfile::TempDir,
@@ -101,25 +113,15 @@ impl Setup {
 
     /// The words of a miniature run with the camera file `camera`, then `extra`.
     fn words<'a>(&'a self, camera: &'a Path, extra: &[&'a str]) -> Vec<&'a str> {
-        let mut words = self.command(
-            camera,
-            &[
-                "--frames",
-                "24",
-                "--val-frames",
-                "4",
-                "--epochs",
-                "1",
-                "--steps-per-epoch",
-                "3",
-                "--rotation-members",
-                "2",
-                "--real",
-                s(&self.root),
-                "--obj-id",
-                "5",
-            ],
-        );
+        let mut words = self.command(camera, &MINIATURE);
+        words.extend([
+            "--rotation-members",
+            "2",
+            "--real",
+            s(&self.root),
+            "--obj-id",
+            "5",
+        ]);
         words.extend(extra);
         words
     }
@@ -371,15 +373,8 @@ fn saved_tensors(run: &Path) -> std::collections::HashMap<String, tch::Tensor> {
 fn pretrained_weights_start_both_models_and_their_frozen_blocks_stay_as_given() {
     let setup = Setup::new();
     let weights = imagenet_weights();
-    let extra = [
-        "--frames",
-        "24",
-        "--val-frames",
-        "4",
-        "--epochs",
-        "1",
-        "--steps-per-epoch",
-        "3",
+    let mut words = setup.command(&setup.camera, &MINIATURE);
+    words.extend([
         "--encoder",
         "efficientnet-lite0",
         "--pretrained",
@@ -388,8 +383,8 @@ fn pretrained_weights_start_both_models_and_their_frozen_blocks_stay_as_given() 
         "16",
         "--learning-rate",
         "0.001",
-    ];
-    ipdf_json(&setup.command(&setup.camera, &extra));
+    ]);
+    ipdf_json(&words);
     let config = read_json(&setup.out.join("pipeline_config.json"));
     assert_eq!(config["pretrained"], s(&weights));
     assert_eq!(config["frozen_blocks"], 16);
