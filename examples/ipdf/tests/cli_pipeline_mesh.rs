@@ -468,3 +468,38 @@ fn pretrained_weights_that_do_not_fit_are_refused_before_the_renders() {
     );
     assert!(!setup.out.join("data").exists());
 }
+
+#[test]
+fn a_translation_encoder_of_its_own_trains_from_its_own_weights() {
+    let setup = Setup::new();
+    let weights = imagenet_weights();
+    let mut words = setup.command(&setup.camera, &MINIATURE);
+    words.extend([
+        "--encoder",
+        "efficientnet-lite0",
+        "--pretrained",
+        s(&weights),
+        "--freeze-encoder",
+        "4",
+        "--translation-encoder",
+        "small-cnn-deep",
+    ]);
+    ipdf_json(&words);
+    let config = read_json(&setup.out.join("pipeline_config.json"));
+    assert_eq!(config["translation_encoder"], "small-cnn-deep");
+    // The weights and the freeze are the rotation model's encoder's.
+    let rotation = read_json(&setup.out.join("model/checkpoint.json"));
+    assert_eq!(rotation["model"]["encoder"], "efficientnet-lite0");
+    assert_eq!(rotation["model"]["frozen_blocks"], 4);
+    let translation = read_json(&setup.out.join("model/translation/checkpoint.json"));
+    assert_eq!(translation["model"]["encoder"], "small-cnn-deep");
+    assert!(
+        translation["model"].get("frozen_blocks").is_none(),
+        "{translation}"
+    );
+    let report = std::fs::read_to_string(setup.out.join("report.md")).unwrap();
+    assert!(report.contains("(translation: small-cnn-deep)"), "{report}");
+    // A rerun with the translation model's encoder changed is refused, naming the flag.
+    let other = [&words[..words.len() - 1], &["small-cnn"]].concat();
+    assert_refused(&other, "translation_encoder (--translation-encoder)");
+}

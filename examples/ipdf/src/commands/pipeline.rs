@@ -54,13 +54,16 @@ pub struct PipelineArgs {
     /// Override the preset's epochs of the translation models.
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     pub translation_epochs: Option<u64>,
-    /// Override the preset's image encoder, of the rotation and the translation models
-    /// (`ipdf train --encoder`).
+    /// Override the preset's image encoder, of the rotation and (unless
+    /// --translation-encoder is given) the translation models (`ipdf train --encoder`).
     #[arg(long, value_parser = parse_encoder)]
     pub encoder: Option<EncoderKind>,
-    /// Weights the encoder starts from, for the rotation and the translation model (`ipdf
-    /// train --pretrained`; --encoder efficientnet-lite0's ImageNet weights:
-    /// .pretrained/efficientnet-lite0.safetensors, from `make setup`).
+    /// The translation model's encoder, instead of --encoder's.
+    #[arg(long, value_parser = parse_encoder, requires = "mesh")]
+    pub translation_encoder: Option<EncoderKind>,
+    /// Weights --encoder starts from, in the models it encodes for (`ipdf train --pretrained`;
+    /// efficientnet-lite0's ImageNet weights: .pretrained/efficientnet-lite0.safetensors, from
+    /// `make setup`).
     #[arg(long, requires = "mesh")]
     pub pretrained: Option<PathBuf>,
     /// Keep the encoder's stem and first N blocks as --pretrained gives them (`ipdf train
@@ -185,6 +188,7 @@ fn plan(args: &PipelineArgs, preset: Plan) -> Plan {
             .unwrap_or(preset.translation_epochs),
         steps_per_epoch: args.steps_per_epoch.unwrap_or(preset.steps_per_epoch),
         encoder: args.encoder.unwrap_or(preset.encoder),
+        translation_encoder: args.translation_encoder.or(preset.translation_encoder),
         learning_rate: args.learning_rate.unwrap_or(preset.learning_rate),
         translation_learning_rate: args
             .translation_learning_rate

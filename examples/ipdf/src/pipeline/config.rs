@@ -84,6 +84,7 @@ impl Preset {
                 backbones: vec![],
                 rotation_frame: RotationFrame::Camera,
                 rotation_members: 1,
+                translation_encoder: None,
                 pretrained: None,
                 frozen_blocks: 0,
                 concurrent_models: 2,
@@ -112,6 +113,7 @@ impl Preset {
                 backbones: vec![EncoderKind::Resnet18Stage3, EncoderKind::ConvnextTiny],
                 rotation_frame: RotationFrame::Camera,
                 rotation_members: 1,
+                translation_encoder: None,
                 pretrained: None,
                 frozen_blocks: 0,
                 concurrent_models: 1,
@@ -243,8 +245,11 @@ pub struct Plan {
     /// none.
     #[serde(default = "one", skip_serializing_if = "is_one")]
     pub rotation_members: usize,
+    /// The translation models' encoder where it is not `encoder` (`--mesh` runs).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub translation_encoder: Option<EncoderKind>,
     /// Weights the encoder starts from (`ipdf train --pretrained`; `--mesh` runs): every model
-    /// of the plan's encoder loads them. `None`: the seeded initial weights.
+    /// of the plan's `encoder` loads them. `None`: the seeded initial weights.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pretrained: Option<PathBuf>,
     /// The encoder's stem and first blocks kept as `pretrained` gives them (`ipdf train
@@ -309,6 +314,14 @@ impl Plan {
         }
     }
 
+    /// The encoder of the models of `target`.
+    pub fn encoder_of(&self, target: Target) -> EncoderKind {
+        match target {
+            Target::Translation => self.translation_encoder.unwrap_or(self.encoder),
+            _ => self.encoder,
+        }
+    }
+
     /// Peak learning rate of the models of `target`.
     pub fn learning_rate_of(&self, target: Target) -> f64 {
         match target {
@@ -358,7 +371,7 @@ pub struct PipelineConfig {
 pub const CONFIG_FILE: &str = "pipeline_config.json";
 
 /// The keys of [`PipelineConfig`] set by command-line flags, and the flags.
-const FLAGS: [(&str, &str); 23] = [
+const FLAGS: [(&str, &str); 24] = [
     ("preset", "--preset"),
     ("seed", "--seed"),
     ("mesh", "--mesh"),
@@ -376,6 +389,7 @@ const FLAGS: [(&str, &str); 23] = [
     ("translation_epochs", "--translation-epochs"),
     ("steps_per_epoch", "--steps-per-epoch"),
     ("encoder", "--encoder"),
+    ("translation_encoder", "--translation-encoder"),
     ("pretrained", "--pretrained"),
     ("frozen_blocks", "--freeze-encoder"),
     ("learning_rate", "--learning-rate"),

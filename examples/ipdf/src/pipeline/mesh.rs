@@ -469,10 +469,12 @@ impl MeshReport {
                 Some(path) => format!(" from `{}`", path.display()),
                 None => String::new(),
             },
-            if p.rotation_members > 1 {
-                format!(" (rotation: an ensemble of {})", p.rotation_members)
-            } else {
-                String::new()
+            match (p.rotation_members, p.translation_encoder) {
+                (1, None) => String::new(),
+                (1, Some(t)) => format!(" (translation: {})", t.name()),
+                (k, None) => format!(" (rotation: an ensemble of {k})"),
+                (k, Some(t)) =>
+                    format!(" (rotation: an ensemble of {k}; translation: {})", t.name()),
             },
             p.input_size,
             p.epochs,

@@ -362,9 +362,13 @@ fn train_models(out: &Path, plan: &Plan, runs: &[ModelRun], seed: u64) -> Result
 }
 
 /// How the plan trains a model of `target` on the `train` split of the dataset in `data`,
-/// validated on its `val` split: the plan's encoder, Pseudo labels, the plan's first occlusion
+/// validated on its `val` split: the plan's encoder of `target` (with the plan's pretrained
+/// weights where it is the plan's encoder), Pseudo labels, the plan's first occlusion
 /// setting and its blur, object 1, into `data/model`: callers set what differs.
 fn train_request(plan: &Plan, data: &Path, target: Target, seed: u64) -> TrainRequest {
+    let encoder = plan.encoder_of(target);
+    // The pretrained weights and the freeze are the plan's encoder's.
+    let pretrained = encoder == plan.encoder;
     TrainRequest {
         dataset: data.to_path_buf(),
         models_dir: "models".into(),
@@ -375,12 +379,12 @@ fn train_request(plan: &Plan, data: &Path, target: Target, seed: u64) -> TrainRe
         labels: LabelSource::Pseudo,
         target,
         model: ModelConfig {
-            encoder: plan.encoder,
+            encoder,
             input_size: plan.input_size as i64,
             head_sizes: plan.head.clone(),
             seed,
             rotation_frame: plan.rotation_frame,
-            frozen_blocks: plan.frozen_blocks,
+            frozen_blocks: if pretrained { plan.frozen_blocks } else { 0 },
             ..ModelConfig::default()
         },
         epochs: plan.epochs_of(target),
@@ -393,7 +397,7 @@ fn train_request(plan: &Plan, data: &Path, target: Target, seed: u64) -> TrainRe
         query_level: plan.query_level,
         translation_queries: plan.translation_queries,
         continuous_steps: 36,
-        pretrained: plan.pretrained.clone(),
+        pretrained: plan.pretrained.clone().filter(|_| pretrained),
         // A translation model's validation refines an octree per crop (about 0.6 s per
         // epoch for 50 crops of the quick preset): 16 crops give the curve.
         validation_images: (target == Target::Translation).then_some(TRANSLATION_VALIDATION),
