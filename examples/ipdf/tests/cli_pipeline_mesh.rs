@@ -126,6 +126,26 @@ impl Setup {
         words
     }
 
+    /// The words of a miniature run of efficientnet-lite0 from `weights` with `frozen` blocks
+    /// frozen, then `extra`.
+    fn pretrained_run<'a>(
+        &'a self,
+        weights: &'a Path,
+        frozen: &'a str,
+        extra: &[&'a str],
+    ) -> Vec<&'a str> {
+        let mut words = self.command(&self.camera, &MINIATURE);
+        words.extend([
+            "--encoder",
+            "efficientnet-lite0",
+            "--pretrained",
+            s(weights),
+        ]);
+        words.extend(["--freeze-encoder", frozen]);
+        words.extend(extra);
+        words
+    }
+
     /// The `pipeline_config.json` a mesh run with `extra` records. A run records its settings
     /// before its first stage: a file in the way of the renders stops it right after.
     fn recorded_config(&self, extra: &[&str]) -> Value {
@@ -373,17 +393,7 @@ fn saved_tensors(run: &Path) -> std::collections::HashMap<String, tch::Tensor> {
 fn pretrained_weights_start_both_models_and_their_frozen_blocks_stay_as_given() {
     let setup = Setup::new();
     let weights = imagenet_weights();
-    let mut words = setup.command(&setup.camera, &MINIATURE);
-    words.extend([
-        "--encoder",
-        "efficientnet-lite0",
-        "--pretrained",
-        s(&weights),
-        "--freeze-encoder",
-        "16",
-        "--learning-rate",
-        "0.001",
-    ]);
+    let words = setup.pretrained_run(&weights, "16", &["--learning-rate", "0.001"]);
     ipdf_json(&words);
     let config = read_json(&setup.out.join("pipeline_config.json"));
     assert_eq!(config["pretrained"], s(&weights));
@@ -473,17 +483,8 @@ fn pretrained_weights_that_do_not_fit_are_refused_before_the_renders() {
 fn a_translation_encoder_of_its_own_trains_from_its_own_weights() {
     let setup = Setup::new();
     let weights = imagenet_weights();
-    let mut words = setup.command(&setup.camera, &MINIATURE);
-    words.extend([
-        "--encoder",
-        "efficientnet-lite0",
-        "--pretrained",
-        s(&weights),
-        "--freeze-encoder",
-        "4",
-        "--translation-encoder",
-        "small-cnn-deep",
-    ]);
+    let extra = ["--translation-encoder", "small-cnn-deep"];
+    let words = setup.pretrained_run(&weights, "4", &extra);
     ipdf_json(&words);
     let config = read_json(&setup.out.join("pipeline_config.json"));
     assert_eq!(config["translation_encoder"], "small-cnn-deep");
