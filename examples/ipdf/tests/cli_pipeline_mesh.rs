@@ -482,7 +482,9 @@ fn pretrained_weights_that_do_not_fit_are_refused_before_the_renders() {
 #[test]
 fn a_translation_encoder_of_its_own_trains_from_its_own_weights() {
     let setup = Setup::new();
-    let weights = imagenet_weights();
+    // A copy of the weights, taken away once the models are trained.
+    let weights = setup.dir.path().join("lite0.safetensors");
+    std::fs::copy(imagenet_weights(), &weights).unwrap();
     let extra = ["--translation-encoder", "small-cnn-deep"];
     let words = setup.pretrained_run(&weights, "4", &extra);
     ipdf_json(&words);
@@ -503,4 +505,9 @@ fn a_translation_encoder_of_its_own_trains_from_its_own_weights() {
     // A rerun with the translation model's encoder changed is refused, naming the flag.
     let other = [&words[..words.len() - 1], &["small-cnn"]].concat();
     assert_refused(&other, "translation_encoder (--translation-encoder)");
+    // Trained models read the weights no more: without the file the report is written again.
+    std::fs::remove_file(&weights).unwrap();
+    std::fs::remove_file(setup.out.join("report.md")).unwrap();
+    ipdf_json(&words);
+    assert!(setup.out.join("report.md").exists());
 }

@@ -156,9 +156,9 @@ pub fn run_mesh_pipeline(
         real: request.real.clone(),
         training_data: "randomised renders".into(),
     };
-    check_encoder(plan)?;
-    check_and_record(out, &config)?;
     let (data, model) = (out.join(DATA), out.join(MODEL));
+    check_encoder(plan, &model)?;
+    check_and_record(out, &config)?;
     let real = request.real.as_ref();
     if let Some(real) = real {
         warn_without_masks(real)?;
@@ -289,19 +289,30 @@ fn label_renders(out: &Path, data: &Path, plan: &Plan, seed: u64) -> Result<Labe
 
 /// Refuses, before any render, an encoder the training would refuse: a freeze the encoder
 /// cannot make, or pretrained weights that do not fit it (a missing file, another network's).
-fn check_encoder(plan: &Plan) -> Result<(), Error> {
+/// The weights are read only while a model that starts from them is still to be trained: a
+/// finished run's report is written again without them.
+fn check_encoder(plan: &Plan, model: &Path) -> Result<(), Error> {
     let config = train_request(plan, Path::new(""), Target::Rotation, 0).model;
     config.validate()?;
-    if let Some(path) = &plan.pretrained {
+    let Some(path) = &plan.pretrained else {
+        return Ok(());
+    };
+    let pending = untrained_models(Path::new(""), model, plan, 0)?;
+    if pending.iter().any(|request| request.pretrained.is_some()) {
         let mut model = ImplicitPdf::new(config, tch::Device::Cpu)?;
         load_backbone(&mut model, path)?;
     }
     Ok(())
 }
 
-/// Stage 3: the rotation model in `model` (each member of its ensemble) and its translation
-/// model, side by side.
-fn train_pose(data: &Path, model: &Path, plan: &Plan, seed: u64) -> Result<(), Error> {
+/// The models of stage 3 not trained yet: each member of the rotation ensemble in `model`, and
+/// the translation model beside them.
+fn untrained_models(
+    data: &Path,
+    model: &Path,
+    plan: &Plan,
+    seed: u64,
+) -> Result<Vec<TrainRequest>, Error> {
     let rotation = TrainRequest {
         out: model.to_path_buf(),
         ..train_request(plan, data, Target::Rotation, seed)
@@ -319,6 +330,13 @@ fn train_pose(data: &Path, model: &Path, plan: &Plan, seed: u64) -> Result<(), E
             pending.push(request);
         }
     }
+    Ok(pending)
+}
+
+/// Stage 3: the rotation model in `model` (each member of its ensemble) and its translation
+/// model, side by side.
+fn train_pose(data: &Path, model: &Path, plan: &Plan, seed: u64) -> Result<(), Error> {
+    let pending = untrained_models(data, model, plan, seed)?;
     on_threads(&pending, plan.concurrent_models, |request| {
         eprintln!("pipeline: training the {} model", request.target.name());
         let progress = bar(plan.total_steps(request.target), "steps");
