@@ -45,14 +45,20 @@ nalgebra = "0.35"
 rand = "0.10"
 rand_chacha = "0.10"
 
-# As the workspace builds its tests: the libraries optimised, so the labelling takes seconds.
+# As the workspace builds its tests (its Cargo.toml, for the packages that are in this tree):
+# the libraries optimised, so the labelling takes seconds.
 [profile.dev]
 opt-level = 2
 debug = "line-tables-only"
 
 [profile.dev.package."*"]
 opt-level = 3
+debug = false
 EOF
+    printf '\n[profile.dev.package.%s]\nopt-level = 1\n' parry3d
+    for package in moxcms pxfm nano-gemm-c32 nano-gemm-c64 gemm-c32 gemm-c64; do
+        printf '\n[profile.dev.package.%s]\nopt-level = 0\n' "$package"
+    done
 } >"$crate/Cargo.toml"
 mkdir "$crate/src"
 cp "$root/scripts/downstream-check/main.rs" "$crate/src/main.rs"
