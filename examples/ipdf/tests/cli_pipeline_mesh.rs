@@ -149,12 +149,35 @@ impl Setup {
     /// The `pipeline_config.json` a mesh run with `extra` records. A run records its settings
     /// before its first stage: a file in the way of the renders stops it right after.
     fn recorded_config(&self, extra: &[&str]) -> Value {
+        self.recorded_config_in(Path::new("."), extra)
+    }
+
+    /// [`Setup::recorded_config`] of a run started in the folder `dir`.
+    fn recorded_config_in(&self, dir: &Path, extra: &[&str]) -> Value {
         std::fs::create_dir_all(&self.out).unwrap();
         std::fs::write(self.out.join("data"), "in the way").unwrap();
         std::fs::remove_file(self.out.join("pipeline_config.json")).ok();
-        assert!(!ipdf(&self.command(&self.camera, extra)).status.success());
+        assert!(
+            !ipdf_in(dir, &self.command(&self.camera, extra))
+                .status
+                .success()
+        );
         read_json(&self.out.join("pipeline_config.json"))
     }
+}
+
+/// Runs `ipdf` with `args` in the folder `dir`.
+fn ipdf_in(dir: &Path, args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_ipdf"))
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .expect("ipdf runs")
+}
+
+/// The repository's root, where `make setup` puts the ImageNet weights.
+fn repository() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
 #[test]
@@ -312,6 +335,80 @@ fn the_quick_preset_trains_the_deep_small_cnn_and_the_encoder_flag_overrides_it(
         stderr.contains("small-cnn-wide: expected one of") && stderr.contains("small-cnn-deep"),
         "{stderr}"
     );
+}
+
+#[test]
+fn the_pretrained_preset_is_the_configuration_measured_and_says_where_its_weights_come_from() {
+    let setup = Setup::new();
+    imagenet_weights();
+    // docs/results.md, "Every instance with the pretrained encoder": the quick preset with
+    // these flags, run from the repository's root.
+    let flags = [
+        "--encoder",
+        "efficientnet-lite0",
+        "--pretrained",
+        ".pretrained/efficientnet-lite0.safetensors",
+        "--freeze-encoder",
+        "8",
+        "--epochs",
+        "48",
+        "--learning-rate",
+        "0.001",
+        "--translation-encoder",
+        "small-cnn-deep",
+        "--translation-epochs",
+        "32",
+        "--translation-learning-rate",
+        "0.002",
+    ];
+    let measured = setup.recorded_config_in(&repository(), &flags);
+    let preset = setup.recorded_config_in(&repository(), &["--preset", "pretrained"]);
+    let (measured, preset) = (measured.as_object().unwrap(), preset.as_object().unwrap());
+    assert_eq!(measured["preset"], "quick");
+    assert_eq!(preset["preset"], "pretrained");
+    let keys: std::collections::BTreeSet<&String> = measured.keys().chain(preset.keys()).collect();
+    for key in keys.into_iter().filter(|key| *key != "preset") {
+        assert_eq!(measured.get(key), preset.get(key), "{key}");
+    }
+    // A flag still overrides the preset.
+    let longer =
+        setup.recorded_config_in(&repository(), &["--preset", "pretrained", "--epochs", "64"]);
+    assert_eq!(
+        (longer["epochs"].clone(), longer["frozen_blocks"].clone()),
+        (json!(64), json!(8))
+    );
+
+    // Started elsewhere, the weights are not found: where they come from is said before
+    // anything is recorded.
+    std::fs::remove_dir_all(&setup.out).unwrap();
+    let elsewhere = ipdf_in(
+        setup.dir.path(),
+        &setup.command(&setup.camera, &["--preset", "pretrained"]),
+    );
+    let stderr = String::from_utf8_lossy(&elsewhere.stderr);
+    assert!(!elsewhere.status.success());
+    assert!(
+        stderr.contains(".pretrained/efficientnet-lite0.safetensors: no such file")
+            && stderr.contains("make setup"),
+        "{stderr}"
+    );
+    assert!(!setup.out.exists());
+    // The preset is for a mesh of the user's: without one it is refused.
+    let demo = ipdf(&["pipeline", "--preset", "pretrained", "--out", s(&setup.out)]);
+    let stderr = String::from_utf8_lossy(&demo.stderr);
+    assert!(
+        !demo.status.success() && stderr.contains("--mesh"),
+        "{stderr}"
+    );
+    // A freeze without weights to keep is refused too.
+    assert_refused(
+        &setup.words(
+            &setup.camera,
+            &["--encoder", "efficientnet-lite0", "--freeze-encoder", "4"],
+        ),
+        "frozen_blocks: 4 blocks frozen, but no --pretrained weights",
+    );
+    assert!(!setup.out.exists());
 }
 
 #[test]

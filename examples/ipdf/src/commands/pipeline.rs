@@ -66,9 +66,9 @@ pub struct PipelineArgs {
     /// `make setup`).
     #[arg(long, requires = "mesh")]
     pub pretrained: Option<PathBuf>,
-    /// Keep the encoder's stem and first N blocks as --pretrained gives them (`ipdf train
-    /// --freeze-encoder`).
-    #[arg(long, requires = "pretrained")]
+    /// Keep the encoder's stem and first N blocks as --pretrained (or the pretrained preset)
+    /// gives them (`ipdf train --freeze-encoder`).
+    #[arg(long, requires = "mesh")]
     pub freeze_encoder: Option<usize>,
     /// Override the preset's peak learning rate (of the translation models too, unless
     /// --translation-learning-rate is given).
@@ -92,7 +92,12 @@ pub struct PipelineArgs {
     /// One object of your own instead of the built-in three (.ply/.obj, its texture image or
     /// vertex colours shown): randomised renders of it, pseudo labels, a rotation and a
     /// translation model, scored on the renders and on `--real` (needs `--camera`).
-    #[arg(long, requires = "camera", conflicts_with = "texture_frames")]
+    #[arg(
+        long,
+        requires = "camera",
+        conflicts_with = "texture_frames",
+        required_if_eq("preset", "pretrained")
+    )]
     pub mesh: Option<PathBuf>,
     /// Metres per `--mesh` unit (BOP meshes are in millimetres).
     #[arg(long, default_value_t = 0.001, requires = "mesh")]

@@ -288,17 +288,38 @@ fn label_renders(out: &Path, data: &Path, plan: &Plan, seed: u64) -> Result<Labe
 }
 
 /// Refuses, before any render, an encoder the training would refuse: a freeze the encoder
-/// cannot make, or pretrained weights that do not fit it (a missing file, another network's).
-/// The weights are read only while a model that starts from them is still to be trained: a
-/// finished run's report is written again without them.
+/// cannot make or without weights to keep, or pretrained weights that do not fit it (a
+/// missing file, with where they come from; another network's). The weights are read only
+/// while a model that starts from them is still to be trained: a finished run's report is
+/// written again without them.
 fn check_encoder(plan: &Plan, model: &Path) -> Result<(), Error> {
     let config = train_request(plan, Path::new(""), Target::Rotation, 0).model;
     config.validate()?;
     let Some(path) = &plan.pretrained else {
+        if plan.frozen_blocks > 0 {
+            return Err(Error::option(
+                "frozen_blocks",
+                format!(
+                    "{} blocks frozen, but no --pretrained weights to keep",
+                    plan.frozen_blocks
+                ),
+            ));
+        }
         return Ok(());
     };
     let pending = untrained_models(Path::new(""), model, plan, 0)?;
     if pending.iter().any(|request| request.pretrained.is_some()) {
+        if !path.is_file() {
+            return Err(Error::option(
+                "pretrained",
+                format!(
+                    "{}: no such file (EfficientNet-Lite0's ImageNet weights: `make setup` \
+                     puts them in the repository's .pretrained/; --pretrained names another \
+                     place)",
+                    path.display()
+                ),
+            ));
+        }
         let mut model = ImplicitPdf::new(config, tch::Device::Cpu)?;
         load_backbone(&mut model, path)?;
     }

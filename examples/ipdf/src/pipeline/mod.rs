@@ -28,7 +28,7 @@ use pseudo_label::{DatasetOptions, LabelOptions, LabelReport, Shard, label_datas
 use serde::{Deserialize, Serialize};
 use synth_data::{ObjectKind, SynthObject, SynthOptions, Variant, synthesize};
 
-pub use config::{CONFIG_FILE, PipelineConfig, Plan, Preset};
+pub use config::{CONFIG_FILE, PRETRAINED_WEIGHTS, PipelineConfig, Plan, Preset};
 pub use mesh::{MeshConfig, MeshReport, MeshRequest, RealSplit, run_mesh_pipeline};
 pub use report::{FigureEntry, LabelAccuracy, ModelScores, Report, ScoreTable};
 pub use workers::on_threads;
