@@ -144,6 +144,8 @@ impl Preset {
                 backbones: vec![],
                 ..Self::Paper.plan()
             },
+            // The built-in objects' run with the same encoder: not measured, and `ipdf
+            // pipeline` takes this preset with `--mesh` only.
             Self::Pretrained => imagenet_encoder(Self::Quick.plan()),
         }
     }

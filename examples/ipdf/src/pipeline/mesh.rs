@@ -15,7 +15,7 @@ use bop_dataset::{
 };
 use depth_render::SensorPreset;
 use ipdf_model::rotation::{ImplicitPdf, MAX_EXTRA_VIEWS};
-use ipdf_model::{TRAIN_LOG, default_device, load_backbone};
+use ipdf_model::{EncoderKind, TRAIN_LOG, default_device, load_backbone};
 use pseudo_label::LabelReport;
 use serde::{Deserialize, Serialize};
 use synth_data::{
@@ -310,14 +310,15 @@ fn check_encoder(plan: &Plan, model: &Path) -> Result<(), Error> {
     let pending = untrained_models(Path::new(""), model, plan, 0)?;
     if pending.iter().any(|request| request.pretrained.is_some()) {
         if !path.is_file() {
+            let source = if plan.encoder == EncoderKind::EfficientnetLite0 {
+                " (EfficientNet-Lite0's ImageNet weights: `make setup` puts them in the \
+                 repository's .pretrained/; --pretrained names another place)"
+            } else {
+                ""
+            };
             return Err(Error::option(
                 "pretrained",
-                format!(
-                    "{}: no such file (EfficientNet-Lite0's ImageNet weights: `make setup` \
-                     puts them in the repository's .pretrained/; --pretrained names another \
-                     place)",
-                    path.display()
-                ),
+                format!("{}: no such file{source}", path.display()),
             ));
         }
         let mut model = ImplicitPdf::new(config, tch::Device::Cpu)?;
