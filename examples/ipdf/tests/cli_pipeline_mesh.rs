@@ -6,7 +6,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{ipdf, ipdf_json, read_json, s};
+use common::{ipdf, ipdf_in, ipdf_json, read_json, s};
 use serde_json::{Value, json};
 
 /// The fixture's folder, in the crate that owns it.
@@ -164,15 +164,6 @@ impl Setup {
         );
         read_json(&self.out.join("pipeline_config.json"))
     }
-}
-
-/// Runs `ipdf` with `args` in the folder `dir`.
-fn ipdf_in(dir: &Path, args: &[&str]) -> std::process::Output {
-    std::process::Command::new(env!("CARGO_BIN_EXE_ipdf"))
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .expect("ipdf runs")
 }
 
 /// The repository's root, where `make setup` puts the ImageNet weights.

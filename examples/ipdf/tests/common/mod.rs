@@ -37,7 +37,13 @@ pub fn read_npy(path: &Path) -> (Vec<u64>, Vec<f32>) {
 
 /// Runs `ipdf` with `args`.
 pub fn ipdf(args: &[&str]) -> Output {
+    ipdf_in(Path::new("."), args)
+}
+
+/// Runs `ipdf` with `args` in the folder `dir`.
+pub fn ipdf_in(dir: &Path, args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_ipdf"))
+        .current_dir(dir)
         .args(args)
         .output()
         .expect("ipdf runs")
