@@ -303,7 +303,7 @@ fn the_gpu_preset_runs_the_paper_networks_at_the_size_measured_on_a_gpu() {
 #[test]
 fn the_quick_preset_trains_the_deep_small_cnn_and_the_encoder_flag_overrides_it() {
     let setup = Setup::new();
-    // docs/results.md, "A deeper small CNN": 64-pixel crops, 128 rotation epochs.
+    // docs/experiments.md, "A deeper small CNN": 64-pixel crops, 128 rotation epochs.
     let preset = setup.recorded_config(&[]);
     assert_eq!(preset["encoder"], "small-cnn-deep");
     assert_eq!(preset["input_size"], 64);

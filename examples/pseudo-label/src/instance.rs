@@ -539,8 +539,8 @@ pub(crate) fn grid_alignments(
 /// observed points in voxels three times the size (a ninth of them) by their mean distance to
 /// the model's surface ([`surface_residual`], capped at three voxels); the [`GRID_KEEP`] best
 /// poses at least [`GRID_APART`] apart are refined on every point and compared, and the best of
-/// them returned, in a fraction of the 72 full alignments' time (`docs/results.md`, "Labelling
-/// strategy and speed").
+/// them returned, in a fraction of the 72 full alignments' time (`docs/experiments.md`,
+/// "Labelling strategy and speed").
 fn grid_search(
     model: &ObjectModel,
     view: &PreparedCloud,

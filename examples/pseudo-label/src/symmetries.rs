@@ -1,8 +1,8 @@
 //! The model's own symmetries, found from its mesh, and the choice of diverse pose sets.
 //!
 //! A random initial pose makes FGR land on *some* member of an object's symmetry set, but not
-//! on an even spread of them (docs/results.md, "Labelling strategy and speed", measures it). So
-//! once one pose is accepted, the other members are reached by re-seeding ICP from that pose
+//! on an even spread of them (docs/experiments.md, "Labelling strategy and speed", measures it).
+//! So once one pose is accepted, the other members are reached by re-seeding ICP from that pose
 //! composed with each self-symmetry of the model, which is found once per object here:
 //! ICP of the model cloud onto itself from every rotation of a level-0 grid (72) about its
 //! centroid, keeping the motions whose surface residual is

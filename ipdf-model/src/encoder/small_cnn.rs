@@ -12,7 +12,7 @@ const CHANNELS: [i64; 5] = [3, 32, 64, 128, 256];
 /// The first stage (0-based) that the deep net gives a second convolution. The first two
 /// stages work on the largest maps: a second convolution there too doubled the training time
 /// of the quick mesh preset, where the last two alone cost half as much again, and placed no
-/// more real instances on a true pose (docs/results.md, "A deeper small CNN").
+/// more real instances on a true pose (docs/experiments.md, "A deeper small CNN").
 const DEEP_FROM_STAGE: usize = 2;
 
 #[derive(Debug)]

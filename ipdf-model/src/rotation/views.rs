@@ -11,8 +11,8 @@ use crate::ModelError;
 
 /// How far each extra view moves the crop, as a fraction of its half-side: zoomed in or out by
 /// this fraction, or shifted by it along x, y or both. Measured on the ten real YCB-Video
-/// objects' quick-preset models with 8 extra views (docs/results.md, "Views of the crop at test
-/// time"): 0.03, 0.045 and 0.06 each raised the validation renders' LLH of every object, and
+/// objects' quick-preset models with 8 extra views (docs/experiments.md, "Views of the crop at
+/// test time"): 0.03, 0.045 and 0.06 each raised the validation renders' LLH of every object, and
 /// 0.03 alone kept every real instance whose truth had been denser than uniform so.
 pub const VIEW_SHIFT: f64 = 0.03;
 

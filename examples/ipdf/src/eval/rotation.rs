@@ -69,7 +69,7 @@ pub struct RotationEvaluation {
 
 /// The cells [`Picks::ball`] centres its ball on: the densest 512, about two 15° balls of
 /// level-4 cells (one holds about 280). On the real YCB-Video objects' models every cell as a
-/// candidate picked the same rotations (docs/results.md, "The heaviest ball").
+/// candidate picked the same rotations (docs/experiments.md, "The heaviest ball").
 pub const BALL_CANDIDATES: usize = 512;
 
 /// Which rotations [`evaluate_rotations`] picks from each crop's distribution beside its scores.

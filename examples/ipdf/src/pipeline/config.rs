@@ -152,18 +152,18 @@ impl Preset {
 
     /// What the preset runs for one mesh of the user's (`ipdf pipeline --mesh`): randomised
     /// renders of it, and a Pseudo rotation and translation model trained with occlusion and
-    /// blur on them. Measured on the real YCB-Video frames (docs/results.md), the quick
+    /// blur on them. Measured on the real YCB-Video frames (docs/experiments.md), the quick
     /// preset's 48-pixel crops, 800 frames and 32 epochs learnt the demo's shapes but not a
     /// real object: 64-pixel crops, 2,000 frames, occlusion and blur are what the cracker
     /// box's real frames answered to, and 128 rotation epochs rather than 64 place a sugar
     /// box's validation renders within 15° half as often again (51% from 39%); the deep small
     /// CNN scored seven objects' validation renders higher than the plain one (LLH 2.77 → 3.47)
-    /// for half as much training time again (docs/results.md, "A deeper small CNN"). The GPU
+    /// for half as much training time again (docs/experiments.md, "A deeper small CNN"). The GPU
     /// preset's run is the one measured on an H200 (5.7–6.1 minutes per object) but for the
     /// frame: every mesh preset's rotation model learns in the line of sight's, since the
     /// renders place the object anywhere in the image and nine of the ten YCB-Video objects'
-    /// validation renders scored higher so (docs/results.md, "Rotations in the line of sight's
-    /// frame").
+    /// validation renders scored higher so (docs/experiments.md, "Rotations in the line of
+    /// sight's frame").
     pub fn mesh_plan(self) -> Plan {
         let base = Plan {
             rotation_frame: RotationFrame::LineOfSight,
@@ -197,7 +197,7 @@ impl Preset {
                 ..base
             },
             // The translation model keeps the quick preset's deep small CNN: the ImageNet
-            // encoder's were no nearer (docs/results.md).
+            // encoder's were no nearer (docs/experiments.md).
             Self::Pretrained => Plan {
                 translation_encoder: Some(EncoderKind::SmallCnnDeep),
                 ..imagenet_encoder(Self::Quick.mesh_plan())

@@ -121,15 +121,15 @@ const MODEL: &str = "model";
 
 /// Test-time views of each crop the rotation model's scores average over: every view there is.
 /// On the ten real YCB-Video objects' models they raised the validation renders' LLH of each
-/// and turned one more real instance into a true pose (docs/results.md, "Views of the crop at
-/// test time"); the demo's runs score the crop alone, as the paper does.
+/// and turned one more real instance into a true pose (docs/experiments.md, "Views of the crop
+/// at test time"); the demo's runs score the crop alone, as the paper does.
 const VIEWS: usize = MAX_EXTRA_VIEWS;
 
 /// The radius (degrees) of the ball whose heaviest centre is each crop's rotation estimate
 /// ([`EvalRequest::ball_deg`]): the estimate most often within 15° of the truth. On the real
 /// YCB-Video objects' models it was nearer the truth than the argmax for most instances and
-/// validation renders (docs/results.md, "The heaviest ball"); the demo's runs score the argmax,
-/// as the paper does.
+/// validation renders (docs/experiments.md, "The heaviest ball"); the demo's runs score the
+/// argmax, as the paper does.
 const BALL_DEG: f64 = 15.0;
 
 /// Runs (or resumes) the pipeline of `plan` for the object of `request` into `out`.
