@@ -1,5 +1,5 @@
 //! Checkpoints, resuming, pretrained backbones and bad input, through the public API.
-mod common;
+use crate::common;
 
 use std::path::Path;
 

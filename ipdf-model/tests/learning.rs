@@ -1,7 +1,7 @@
 //! The paper's central contrast on tiny cube renders: trained with the analytic symmetry set,
 //! the model's predicted set recalls the cube's 24 symmetries; trained with the single
 //! rendering pose, it does not.
-mod common;
+use crate::common;
 
 use ipdf_metrics::{
     Distribution, GridCell, RECALL_THRESHOLD, llh, maad, nearest_distances, recall_maad,

@@ -1,7 +1,7 @@
 //! The translation model on renders of a cube at random places in front of the camera: it
 //! learns where the cube is to a few millimetres; its octree distribution sums to 1 and matches
 //! the dense grid; gradient ascent ends near the densest cell; bad input gets typed errors.
-mod common;
+use crate::common;
 
 use common::render_cube;
 use depth_render::{PinholeCamera, Primitive, Scene};

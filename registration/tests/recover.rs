@@ -1,6 +1,6 @@
 //! FGR + ICP recovers random rigid transforms of a non-symmetric object's partial view.
 
-mod common;
+use crate::common;
 
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 use proptest::prelude::*;

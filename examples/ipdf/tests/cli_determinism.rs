@@ -2,7 +2,7 @@
 //! kernels (`ipdf_model::REPRODUCIBLE_CPU_KERNELS`), with which the small CNN trains to the same
 //! bits on one thread as on two (the deep small CNN to the same bits on the same threads), and
 //! labelling never depended on threads.
-mod common;
+use crate::common;
 
 use common::{BRIEF_TRAINING, ipdf_json, s, synth, train_args};
 

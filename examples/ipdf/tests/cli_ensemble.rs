@@ -2,7 +2,7 @@
 //! and names them; `predict`, `eval` and `viz` read the folder as one model whose density is
 //! the normalised geometric mean of the members' (each member's own prediction is the oracle);
 //! bad member counts are refused.
-mod common;
+use crate::common;
 
 use std::path::Path;
 

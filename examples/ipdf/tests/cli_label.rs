@@ -1,7 +1,7 @@
 //! `ipdf synth` and `ipdf label` through the real binary: a tiny synthetic dataset is labelled
 //! and its labels scored against the ground truth; a killed run resumes to the same files; bad
 //! instances are recorded and counted; bad flags fail with one line.
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::process::Command;

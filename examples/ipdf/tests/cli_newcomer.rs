@@ -2,7 +2,7 @@
 //! nearest command, the subcommand's `--help`, the flag that fixes a scale or a models folder,
 //! the splits and scenes that exist), outputs are refused under a name of another format, and
 //! reruns with changed settings are refused or repaired rather than silently mixed.
-mod common;
+use crate::common;
 
 use std::path::Path;
 

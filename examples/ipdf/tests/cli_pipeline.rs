@@ -1,7 +1,7 @@
 //! `ipdf train`, `eval`, `predict`, `viz` and `pipeline` through the real binary: a miniature
 //! pipeline (a few dozen frames, tens of training steps) whose every artefact exists and
 //! parses with plausible values, and bad inputs that fail with one line.
-mod common;
+use crate::common;
 
 use std::path::Path;
 

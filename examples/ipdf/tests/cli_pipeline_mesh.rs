@@ -2,7 +2,7 @@
 //! fixture, in miniature (a few dozen renders, a few training steps), scored on the fixture's
 //! real frames. The instances scored are counted from the fixture's own files; accuracy is not
 //! checked (docs/results.md measures it at full size).
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

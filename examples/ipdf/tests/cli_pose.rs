@@ -1,7 +1,7 @@
 //! 6D poses through the real binary: `train --target translation|pose`, `eval` and `predict`
 //! of translation models and pose runs on a few synthetic frames (barely trained: the files,
 //! their shapes and the figures' ranges are checked, not accuracy), and bad inputs.
-mod common;
+use crate::common;
 
 use std::path::Path;
 

@@ -1,5 +1,5 @@
 //! `ipdf register` through the real binary: PLY clouds in, a JSON pose out, one-line errors.
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

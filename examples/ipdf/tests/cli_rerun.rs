@@ -1,7 +1,7 @@
 //! Reruns into existing output folders through the real binary: `ipdf synth` and `ipdf
 //! pipeline` resume an identical run and refuse one whose options differ, naming the option;
 //! plus the global flags' and `grid`'s argument checks.
-mod common;
+use crate::common;
 
 use common::{assert_fails, ipdf, ipdf_json, read_json, s, synth, synth_args};
 

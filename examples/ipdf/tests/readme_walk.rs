@@ -6,7 +6,7 @@
 //! `bash` in a fresh folder where `target/release/ipdf` is this build's binary, `tless` a
 //! copy of the T-LESS layout fixture and `lmo` one of the real LM-O frame. Only sizes are shrunk ([`MINIATURE`]); every flag, path
 //! and file the guide names is used as written.
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::process::Command;

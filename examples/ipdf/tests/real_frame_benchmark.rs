@@ -6,7 +6,7 @@
 //! without colour) its camera is the frame's and nothing is scored against depth. The scores
 //! themselves are the full-scale run's (docs/results.md); a model this brief is not expected to
 //! be good.
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -4,7 +4,7 @@
 //! `ipdf predict --bbox` against `--mask`; published rotations counted, garbled ones and bad
 //! boxes refused. The model is barely trained (on the frame's own boxes): formats and equalities
 //! are checked, not accuracy.
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

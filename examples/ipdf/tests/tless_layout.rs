@@ -2,7 +2,7 @@
 //! through the command line and the training data: full masks standing in for missing visible
 //! ones, the models folder named by its flag. Its labels are tested through the library, in
 //! `examples/pseudo-label/tests/tless_layout.rs`.
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

@@ -1,7 +1,7 @@
 //! The real YCB-Video frames of `pseudo-label` through the command line: `ipdf label` labels
 //! every instance. The fixture and the tests of its labels (scored against the ground truth)
 //! belong to `pseudo-label` (`examples/pseudo-label/tests/real_frames.rs`).
-mod common;
+use crate::common;
 
 use std::path::Path;
 

@@ -4,7 +4,7 @@
 //! acceptance bar of 1.3 but over the good score of 0.9; the further trials find the bowl's
 //! true ring. The bowl is symmetric about its z axis, so a label is right exactly where its z
 //! axis is the truth's: the angle between the two axes is the error, whatever the turn.
-mod common;
+use crate::common;
 
 use std::path::Path;
 

@@ -7,7 +7,7 @@
 //! geometric symmetries; BOP's Visible Surface Discrepancy, under which poses the view cannot
 //! tell apart (a mug with its handle hidden, turned about its axis) are the same; and ADD(-S),
 //! ADD-S for the objects BOP evaluates as symmetric.
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

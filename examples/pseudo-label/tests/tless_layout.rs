@@ -2,7 +2,7 @@
 //! `models_cad/`, split `test_primesense`, non-consecutive image ids, two instances in one
 //! image. The fixture belongs to `bop-dataset`, whose reader tests it describe (see
 //! [`FIXTURE`]); it is read from there, not copied into this crate.
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

@@ -1,0 +1,4 @@
+//! The crate's integration tests, one module per file, in one test binary: the binary
+//! links the crate and its dependencies once instead of once per file.
+mod pose_error;
+mod scores;
