@@ -1,10 +1,10 @@
 //! Checkpoints: a folder with `checkpoint.json` (configuration, training options, step, and
 //! the names of the tensor files), `model-<step>.safetensors` and, while training,
 //! `optimizer-<step>.safetensors` (Adam's moments). Tensor files are written under a temporary
-//! name and renamed; `checkpoint.json` is renamed last, so a killed write leaves the previous
+//! name (`.NAME.partial`, reused by the next write of the same file) and renamed; `checkpoint.json` is renamed last, so a killed write leaves the previous
 //! checkpoint intact. Files of older steps are removed after the new JSON is in place.
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 use tch::{Device, Tensor, nn};
@@ -151,19 +151,31 @@ pub(crate) fn write_text_atomically(path: &Path, text: &str) -> Result<(), Model
     })
 }
 
-/// Runs `write` on `path` + `.tmp`, then renames it to `path`: the crate's one atomic write.
+/// Runs `write` on the hidden sibling `.NAME.partial` of `path`, then renames it to `path`: the
+/// crate's one atomic write. A sibling left by a killed writer is overwritten by the next write
+/// of the same file (a resumed run writes the same step's files again); one left by a failed
+/// `write` is removed. The same naming as the dataset crates' writer.
 fn write_then_rename(
     path: &Path,
     write: impl FnOnce(&Path) -> Result<(), ModelError>,
 ) -> Result<(), ModelError> {
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".tmp");
-    let tmp = PathBuf::from(tmp);
-    write(&tmp)?;
-    std::fs::rename(&tmp, path).map_err(|source| ModelError::Io {
-        path: path.to_path_buf(),
-        source,
-    })
+    let Some(name) = path.file_name() else {
+        return Err(ModelError::checkpoint(path, "not a file path"));
+    };
+    let mut partial = std::ffi::OsString::from(".");
+    partial.push(name);
+    partial.push(".partial");
+    let partial = path.with_file_name(partial);
+    let renamed = write(&partial).and_then(|()| {
+        std::fs::rename(&partial, path).map_err(|source| ModelError::Io {
+            path: path.to_path_buf(),
+            source,
+        })
+    });
+    if renamed.is_err() {
+        let _ = std::fs::remove_file(&partial);
+    }
+    renamed
 }
 
 /// The tensors of a `.safetensors` file, by name, on `device`.

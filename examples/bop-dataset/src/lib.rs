@@ -60,7 +60,7 @@ mod pseudo_gt;
 mod recorded;
 mod scene;
 
-pub use atomic::{write_atomically, write_json};
+pub use atomic::{PARTIAL_SUFFIX, partial_path, write_atomically, write_json};
 pub use dataset_info::DatasetInfo;
 pub use error::FileError;
 pub use images::{

@@ -3,6 +3,7 @@
 mod cli_determinism;
 mod cli_ensemble;
 mod cli_grid;
+mod cli_killed;
 mod cli_label;
 mod cli_newcomer;
 mod cli_pipeline;
