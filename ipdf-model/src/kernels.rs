@@ -16,13 +16,13 @@
 //! still chooses the wider kernels.
 //!
 //! ```
-//! use ipdf_model::{kernel_settings, missing_kernel_settings};
+//! use ipdf_model::REPRODUCIBLE_CPU_KERNELS;
 //!
-//! // A setting is missing exactly when this process's environment lacks it.
-//! let missing = missing_kernel_settings();
-//! for (name, value) in kernel_settings() {
-//!     assert_eq!(missing.iter().any(|(n, _)| *n == name), value.is_none(), "{name}");
-//! }
+//! // What the `ipdf` binary adds where the environment does not say: AVX2 in all three.
+//! assert_eq!(
+//!     REPRODUCIBLE_CPU_KERNELS,
+//!     [("ATEN_CPU_CAPABILITY", "avx2"), ("ONEDNN_MAX_CPU_ISA", "AVX2"), ("MKL_CBWR", "AVX2,STRICT")]
+//! );
 //! ```
 
 /// The environment that pins libtorch's CPU kernels to AVX2 code paths:

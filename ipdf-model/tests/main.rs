@@ -2,6 +2,7 @@
 //! links the crate and its dependencies once instead of once per file.
 mod checkpoint;
 mod common;
+mod kernels;
 mod learning;
 mod model;
 mod translation;

@@ -68,7 +68,7 @@ mod tests {
 
     proptest! {
         #[test]
-        fn one_point_per_voxel_inside_its_voxel(
+        fn one_point_per_voxel_at_its_centroid(
             coords in prop::collection::vec((-1.0f32..1.0, -1.0f32..1.0, -1.0f32..1.0), 1..400),
             voxel_size in 0.01f32..0.5,
         ) {
@@ -84,13 +84,13 @@ mod tests {
             }
             // One point per occupied voxel, in voxel order (x, then y, then z index).
             prop_assert_eq!(down.len(), members.len());
-            // Each centroid lies in the bounding box of its voxel's points (so inside the
-            // voxel), up to f32 rounding.
+            // Each output point is its voxel's centroid (summed here in f64, point by point),
+            // up to f32 rounding: the centre of the points' box, `(min + max) / 2`, is not.
             for (q, voxel_points) in down.points().iter().zip(members.values()) {
+                let sum = voxel_points.iter().fold(Vector3::<f64>::zeros(), |s, p| s + p.coords.cast());
+                let centroid = sum / voxel_points.len() as f64;
                 for axis in 0..3 {
-                    let low = voxel_points.iter().map(|p| p[axis]).fold(f32::INFINITY, f32::min);
-                    let high = voxel_points.iter().map(|p| p[axis]).fold(f32::NEG_INFINITY, f32::max);
-                    prop_assert!(low - 1e-6 <= q[axis] && q[axis] <= high + 1e-6, "{q} outside {voxel_points:?}");
+                    prop_assert!((f64::from(q[axis]) - centroid[axis]).abs() < 1e-6, "{q} is not the centroid {centroid} of {voxel_points:?}");
                 }
             }
             // Input order does not matter.

@@ -151,21 +151,16 @@ fn a_tiny_target_has_too_few_correspondences_and_no_nan_pose() {
         prepare_cloud(&source, &options).unwrap(),
         prepare_cloud(&target, &options).unwrap(),
     );
-    match register(
+    // Four target points cannot fix a pose: no pose at all, rather than one the points do
+    // not determine (the identity, or a NaN from a singular solve).
+    let found = register(
         &source,
         &target,
         &Isometry3::identity(),
         &RegisterOptions::default(),
-    ) {
-        Err(RegistrationError::NoCorrespondences { .. }) => {}
-        Ok(found) => assert!(
-            found
-                .alignment
-                .pose
-                .to_homogeneous()
-                .iter()
-                .all(|v| v.is_finite())
-        ),
-        Err(other) => panic!("unexpected error {other}"),
-    }
+    );
+    assert!(
+        matches!(found, Err(RegistrationError::NoCorrespondences { .. })),
+        "{found:?}"
+    );
 }

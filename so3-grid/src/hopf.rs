@@ -42,8 +42,13 @@ impl Section {
         };
         let norm = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
         if norm < 1e-300 {
-            // The section's singular pole (never reached by the pixels using it).
-            return [0.0, 1.0, 0.0, 0.0];
+            // The section's singular pole (never reached by the pixels using it): a rotation
+            // that still takes ẑ there, the half turn about x for North's −ẑ, the identity
+            // for South's +ẑ.
+            return match self {
+                Section::North => [0.0, 1.0, 0.0, 0.0],
+                Section::South => [1.0, 0.0, 0.0, 0.0],
+            };
         }
         q.map(|c| c / norm)
     }
@@ -138,10 +143,17 @@ mod tests {
     }
 
     #[test]
-    fn sections_are_finite_at_their_singular_pole() {
+    fn sections_take_z_to_both_poles_even_the_singular_one() {
         for section in [Section::North, Section::South] {
             for s in [[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]] {
-                assert!(section.base(&s).iter().all(|c| c.is_finite()));
+                let base = section.base(&s);
+                let norm = base.iter().map(|c| c * c).sum::<f64>().sqrt();
+                assert!((norm - 1.0).abs() < 1e-12, "{section:?} at {s:?}: {base:?}");
+                let axis = rotated_z_axis(&base);
+                assert!(
+                    (0..3).all(|i| (axis[i] - s[i]).abs() < 1e-12),
+                    "{section:?} at {s:?} takes z to {axis:?}"
+                );
             }
         }
         assert_eq!(Section::of_pixel(2, 8 << 4), Section::South);

@@ -45,18 +45,6 @@ impl ModelInfo {
         }
     }
 
-    /// The symmetry group with translations in metres (the library's unit).
-    pub fn symmetry_in_metres(&self) -> SymmetryGroup {
-        let mut symmetry = self.symmetry.clone();
-        for s in &mut symmetry.discrete {
-            s.translation.vector *= 1e-3;
-        }
-        for c in &mut symmetry.continuous {
-            c.offset *= 1e-3;
-        }
-        symmetry
-    }
-
     fn to_json(&self) -> Value {
         let mut entry = json!({"diameter": self.diameter});
         let fields = entry.as_object_mut().expect("an object");

@@ -84,9 +84,29 @@ fn an_ensemble_predicts_the_normalised_geometric_mean_of_its_members() {
     // The scores say how many models made them; one model's leave the key out.
     assert_eq!(scores["members"], 2);
     assert!(alone.get("members").is_none(), "{alone}");
+    // viz draws the ensemble's distribution: the figure has the size it reports and is not
+    // the first member's alone.
     let figure = dir.path().join("ensemble.png");
+    let member_figure = dir.path().join("member.png");
     let drawn = ["--scene", "0", "--image", "0"];
-    assert!(ipdf_json(&viz_args(&run, &figure, &drawn))["width"].as_u64() > Some(0));
+    let reported = ipdf_json(&viz_args(&run, &figure, &drawn));
+    ipdf_json(&viz_args(&first, &member_figure, &drawn));
+    let (ensemble_image, member_image) = (
+        image::open(&figure).unwrap().to_rgb8(),
+        image::open(&member_figure).unwrap().to_rgb8(),
+    );
+    assert_eq!(
+        (reported["width"].as_u64(), reported["height"].as_u64()),
+        (
+            Some(u64::from(ensemble_image.width())),
+            Some(u64::from(ensemble_image.height()))
+        )
+    );
+    assert_eq!(ensemble_image.dimensions(), member_image.dimensions());
+    assert!(
+        ensemble_image != member_image,
+        "the ensemble is drawn as its first member"
+    );
 
     // A member named but missing is refused, naming the file; as is a count out of range, or
     // an ensemble of translation models.

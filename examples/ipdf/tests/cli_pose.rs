@@ -373,7 +373,11 @@ fn pose_runs_train_score_and_predict_translations() {
     // With the image's depth (`--camera` gives its units), the most likely translation is also
     // fitted to it inside the box's visible mask: the model's stays as it was, and the fitted
     // one, whatever the rotation (and this briefly trained model places the box 50 cm off),
-    // lies within the box's diameter of the truth.
+    // lies within the box's diameter of the truth. The diameter is the bound, not less: the
+    // fit moves the model at the most likely rotation, which this model gets wrong, along the
+    // line of sight until its surface meets the depth, so the box's centre can end anywhere
+    // within its own size of the truth's (58 mm here). The fit's accuracy at the right rotation
+    // is `ipdf::depth_fit`'s tests'.
     let gt = &read_json(&scene.join("scene_gt.json"))["0"];
     let index = gt
         .as_array()
@@ -387,7 +391,16 @@ fn pose_runs_train_score_and_predict_translations() {
     let figure = dir.path().join("line_of_sight.png");
     let instance = index.to_string();
     let drawn = ["--scene", "0", "--image", "0", "--instance", &instance];
-    assert!(ipdf_json(&viz_args(&los, &figure, &drawn))["width"].as_u64() > Some(0));
+    // What is checked here is that viz accepts the line-of-sight model with an image that
+    // brings its intrinsics (and, next, refuses one without them); the turn into the camera's
+    // frame that the figure draws is predict's, whose answers are checked against the turn
+    // above. The figure is a picture of the size viz reports.
+    let reported = ipdf_json(&viz_args(&los, &figure, &drawn));
+    let drawn_figure = image::open(&figure).unwrap();
+    assert_eq!(
+        reported["width"].as_u64(),
+        Some(u64::from(drawn_figure.width()))
+    );
     assert_fails(
         &viz_args(&los, &figure, &["--rgb", s(&rgb), "--mask", s(&box_mask)]),
         "which needs the camera's intrinsics",
@@ -420,16 +433,17 @@ fn pose_runs_train_score_and_predict_translations() {
         "{fitted} against {truth}"
     );
     // With depth, a pose is also found from the rotation model's 8 hypotheses: each is placed
-    // on the mask's depth and refined by ICP, so whichever is chosen lies on the box's surface
-    // (its centre within the diameter of the truth), and its rotation matrix is its
-    // quaternion's. Without depth there is none.
+    // on the mask's depth and refined by ICP, and the one chosen sits on the box's surface as
+    // the truth does: its centre within 5 mm of the truth's (0.6 mm here; placed on the depth
+    // without ICP it would be off by the hypothesis' error, tens of millimetres), and its
+    // rotation matrix is its quaternion's. Without depth there is none.
     assert!(predicted.get("refined_with_depth").is_none(), "{predicted}");
     let refined = &fitted["refined_with_depth"];
     assert!((refined["hypothesis"].as_u64().unwrap()) < 8, "{refined}");
     assert!(finite(&refined["score"]) >= 0.0, "{refined}");
     let refined_t = vector(&refined["cam_t_m2c"]);
     assert!(
-        (refined_t - truth).norm() < diameter,
+        (refined_t - truth).norm() < 5.0,
         "{refined} against {truth}"
     );
     let matrix = quaternion(&refined["quaternion_wxyz"]).to_rotation_matrix();
@@ -438,27 +452,24 @@ fn pose_runs_train_score_and_predict_translations() {
         assert!((entry - matrix[(i / 3, i % 3)]).abs() < 1e-9, "{refined}");
     }
     // Compared in a stereo camera's expected errors (`--sensor realsense`), the pose found is
-    // still on the box's surface, and its score is counted in other units than the Kinect's.
+    // still on the box's surface (within 5 mm), and its score is counted in other units than the Kinect's.
     let stereo = [&with_depth[..], &["--sensor", "realsense"]].concat();
     let stereo = ipdf_json(&predict_args(&run, &rgb, &box_mask, &out, &stereo));
     let stereo = &stereo["refined_with_depth"];
     assert!(
-        (vector(&stereo["cam_t_m2c"]) - truth).norm() < diameter,
+        (vector(&stereo["cam_t_m2c"]) - truth).norm() < 5.0,
         "{stereo} against {truth}"
     );
     assert_ne!(stereo["score"], refined["score"], "{stereo} {refined}");
     // Averaged over the crop and its 8 test-time views (`--views 8`), the rotation model's
     // image term is another, so its answer moves; the pose found with depth still lies on the
-    // box's surface.
+    // box's surface (within 5 mm).
     let viewed = [&with_depth[..], &["--views", "8"]].concat();
     let viewed = ipdf_json(&predict_args(&run, &rgb, &box_mask, &out, &viewed));
     let one_view = &fitted["argmax"]["quaternion_wxyz"];
     assert_ne!(&viewed["argmax"]["quaternion_wxyz"], one_view, "{viewed}");
     let viewed_t = vector(&viewed["refined_with_depth"]["cam_t_m2c"]);
-    assert!(
-        (viewed_t - truth).norm() < diameter,
-        "{viewed} against {truth}"
-    );
+    assert!((viewed_t - truth).norm() < 5.0, "{viewed} against {truth}");
     // A depth image with no reading inside the mask: predict still answers, with neither the
     // fitted translation nor the refined pose.
     let blank_depth = dir.path().join("blank_depth.png");

@@ -131,6 +131,51 @@ fn the_readme_commands_run_in_order() {
     ] {
         assert!(dir.path().join(file).is_file(), "{file} was not written");
     }
+    check_rendered_box(dir.path());
+    // The figures the guide shows are drawn: each a picture, not a blank canvas.
+    for figure in ["data/uniform/labels.png", "box.png", "box_curves.png"] {
+        let path = dir.path().join(figure);
+        let image = image::open(&path)
+            .unwrap_or_else(|e| panic!("{figure}: {e}"))
+            .to_rgb8();
+        let drawn = image.pixels().filter(|p| p.0 != [255, 255, 255]).count();
+        let colours: std::collections::HashSet<[u8; 3]> = image.pixels().map(|p| p.0).collect();
+        assert!(
+            drawn * 50 > image.pixels().len() && colours.len() > 20,
+            "{figure}: {drawn} drawn pixels, {} colours",
+            colours.len()
+        );
+    }
+}
+
+/// The guide's `ipdf render` of the box: its mask is where its depth is, and the depth at the
+/// pixel of the box's centre is the closed form's. The pose turns the box about x (cos 0.8,
+/// sin 0.6) and sets it 700 mm ahead, so the ray through the centre leaves the box along the
+/// model direction `Rᵀ·(0, 0, −1) = (0, −0.6, −0.8)`, at `min(e_y / 0.6, e_z / 0.8)` from the
+/// centre for half-extents `e`.
+fn check_rendered_box(dir: &Path) {
+    let depth = image::open(dir.join("depth.png")).unwrap().to_luma16();
+    let mask = image::open(dir.join("mask.png")).unwrap().to_luma8();
+    assert_eq!(depth.dimensions(), mask.dimensions());
+    for (d, m) in depth.pixels().zip(mask.pixels()) {
+        assert_eq!(d.0[0] > 0, m.0[0] > 0, "the mask is where the depth is");
+    }
+    let read = |file: &str| -> serde_json::Value {
+        serde_json::from_slice(&std::fs::read(dir.join(file)).unwrap()).unwrap()
+    };
+    let box_info = &read("data/uniform/models/models_info.json")["2"];
+    let half = |axis: &str| box_info[format!("size_{axis}")].as_f64().unwrap() / 2.0;
+    let exit = (half("y") / 0.6).min(half("z") / 0.8);
+    let k = &read("data/uniform/camera.json");
+    let (cx, cy) = (k["cx"].as_f64().unwrap(), k["cy"].as_f64().unwrap());
+    let centre = depth.get_pixel(cx.round() as u32, cy.round() as u32).0[0];
+    // The camera file's depth_scale: 0.1 mm per unit.
+    let centre_mm = f64::from(centre) * k["depth_scale"].as_f64().unwrap();
+    assert!(
+        (centre_mm - (700.0 - exit)).abs() < 1.0,
+        "depth {centre_mm} mm at the centre, expected {}",
+        700.0 - exit
+    );
 }
 
 #[test]

@@ -137,3 +137,21 @@ impl Encoder {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_encoder_is_found_by_its_name_and_only_by_it() {
+        for kind in EncoderKind::ALL {
+            assert_eq!(EncoderKind::from_name(kind.name()), Some(kind));
+            assert_eq!(EncoderKind::from_name(&kind.name().to_uppercase()), None);
+        }
+        assert_eq!(
+            EncoderKind::from_name("efficientnet-lite0"),
+            Some(EncoderKind::EfficientnetLite0)
+        );
+        assert_eq!(EncoderKind::from_name("resnet"), None);
+    }
+}

@@ -13,13 +13,10 @@ use ipdf_model::{EncoderKind, ModelConfig};
 
 /// The encoder named on the command line.
 pub fn parse_encoder(name: &str) -> Result<EncoderKind, String> {
-    EncoderKind::ALL
-        .into_iter()
-        .find(|kind| kind.name() == name)
-        .ok_or_else(|| {
-            let names: Vec<_> = EncoderKind::ALL.iter().map(|k| k.name()).collect();
-            format!("{name}: expected one of {}", names.join(", "))
-        })
+    EncoderKind::from_name(name).ok_or_else(|| {
+        let names: Vec<_> = EncoderKind::ALL.iter().map(|k| k.name()).collect();
+        format!("{name}: expected one of {}", names.join(", "))
+    })
 }
 
 /// Arguments of `ipdf train`.
@@ -132,24 +129,7 @@ pub struct TrainArgs {
 /// Runs `ipdf train`; returns the last epoch's figures ([`TrainResult`]; for `--target pose`
 /// `{"rotation": …, "translation": …}`).
 pub fn run(args: &TrainArgs, seed: u64) -> Result<serde_json::Value> {
-    if args.continuous_steps == 0 {
-        bail!("--continuous-steps must be at least 1");
-    }
-    if args.batch_size == 0 {
-        bail!("--batch-size must be at least 1");
-    }
-    if !(0.0..=10.0).contains(&args.blur) {
-        bail!("--blur must be in 0..=10 crop pixels, got {}", args.blur);
-    }
-    if args.members > 1 && args.target == Target::Translation {
-        bail!(
-            "--members {}: only rotation models form ensembles",
-            args.members
-        );
-    }
-    if args.out.exists() && !args.out.is_dir() {
-        bail!("--out {}: exists and is not a folder", args.out.display());
-    }
+    check_args(args)?;
     let request = TrainRequest {
         dataset: args.dataset.clone(),
         models_dir: args.models_dir.clone(),
@@ -215,4 +195,27 @@ pub fn run(args: &TrainArgs, seed: u64) -> Result<serde_json::Value> {
         })),
         target => train(target, args.out.clone()),
     }
+}
+
+/// Refuses the flag values `clap` cannot check alone.
+fn check_args(args: &TrainArgs) -> Result<()> {
+    if args.continuous_steps == 0 {
+        bail!("--continuous-steps must be at least 1");
+    }
+    if args.batch_size == 0 {
+        bail!("--batch-size must be at least 1");
+    }
+    if !(0.0..=10.0).contains(&args.blur) {
+        bail!("--blur must be in 0..=10 crop pixels, got {}", args.blur);
+    }
+    if args.members > 1 && args.target == Target::Translation {
+        bail!(
+            "--members {}: only rotation models form ensembles",
+            args.members
+        );
+    }
+    if args.out.exists() && !args.out.is_dir() {
+        bail!("--out {}: exists and is not a folder", args.out.display());
+    }
+    Ok(())
 }

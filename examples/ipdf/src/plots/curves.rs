@@ -176,8 +176,49 @@ mod tests {
         assert_eq!(losses, vec![(1.0, 5.5), (2.0, 4.0), (3.0, 3.0)]);
         assert_eq!(llhs, vec![(1.0, -1.0), (2.0, 0.5)]);
         let image = plot_training_curves(text, Path::new("t.csv")).unwrap();
-        let has = |c: RGBColor| image.pixels().any(|p| p.0 == [c.0, c.1, c.2]);
-        assert!(has(BLUE) && has(ORANGE));
+        // Each axis spans its series (plus a margin), so a curve runs corner to corner: the
+        // loss (5.5 → 3.0) from the top left of its panel to the bottom right, the LLH
+        // (−1.0 → 0.5) from the bottom left of its panel to the top right. The leftmost and
+        // rightmost pixels of a colour are its first and last points (the legend's swatch lies
+        // left of the legend's text, inside the plot).
+        let ends = |c: RGBColor, columns: std::ops::Range<u32>| {
+            let pixels: Vec<(u32, u32)> = image
+                .enumerate_pixels()
+                .filter(|(x, _, p)| columns.contains(x) && p.0 == [c.0, c.1, c.2])
+                .map(|(x, y, _)| (x, y))
+                .collect();
+            let left = pixels
+                .iter()
+                .map(|p| p.0)
+                .min()
+                .expect("the curve is drawn");
+            let right = pixels.iter().map(|p| p.0).max().unwrap();
+            let mean_row = |column: u32| {
+                let rows: Vec<u32> = pixels
+                    .iter()
+                    .filter(|p| p.0 == column)
+                    .map(|p| p.1)
+                    .collect();
+                rows.iter().sum::<u32>() as f64 / rows.len() as f64
+            };
+            (right - left, mean_row(left), mean_row(right))
+        };
+        let half = image.width() / 2;
+        let (loss_span, loss_first, loss_last) = ends(BLUE, 0..half);
+        let (llh_span, llh_first, llh_last) = ends(ORANGE, half..image.width());
+        let tall = 0.5 * f64::from(image.height());
+        assert!(
+            loss_span > half / 2 && llh_span > half / 2,
+            "{loss_span} {llh_span}"
+        );
+        assert!(
+            loss_last - loss_first > 0.6 * tall,
+            "{loss_first} → {loss_last}"
+        );
+        assert!(
+            llh_first - llh_last > 0.6 * tall,
+            "{llh_first} → {llh_last}"
+        );
         let bad = "epoch,loss,validation_llh\n1,x,2\n";
         assert_eq!(
             read_train_log(bad, Path::new("t.csv")).unwrap_err().field,

@@ -80,17 +80,7 @@ fn panel(
         .label(format!("{COVERAGE_ANGLE_DEG}° (coverage criterion)"))
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], BLACK.stroke_width(1)));
     for ((name, scores), &colour) in report.objects.iter().zip(COLOURS.iter().cycle()) {
-        let mut errors = scores.errors_deg.clone();
-        errors.sort_by(f64::total_cmp);
-        let n = errors.len().max(1) as f64;
-        // A step up at each error, from 0 at the left edge.
-        let mut steps = vec![(RANGE_DEG.0, 0.0)];
-        for (k, &error) in errors.iter().enumerate() {
-            let x = error.clamp(RANGE_DEG.0, RANGE_DEG.1);
-            steps.push((x, k as f64 / n));
-            steps.push((x, (k + 1) as f64 / n));
-        }
-        steps.push((RANGE_DEG.1, errors.len() as f64 / n));
+        let steps = cumulative_steps(&scores.errors_deg);
         let legend = format!(
             "{name}: MAAD {:.2}°, {} label{}, coverage {:.1}%",
             scores.label_maad_deg,
@@ -116,13 +106,50 @@ fn panel(
         .map_err(figure_error)
 }
 
+/// The cumulative distribution of `errors_deg` as the corners of a staircase over
+/// [`RANGE_DEG`]: `(x, fraction of errors ≤ x)`, a step up at each error (clamped to the
+/// range), from 0 at the left edge to the whole fraction at the right.
+fn cumulative_steps(errors_deg: &[f64]) -> Vec<(f64, f64)> {
+    let mut errors = errors_deg.to_vec();
+    errors.sort_by(f64::total_cmp);
+    let n = errors.len().max(1) as f64;
+    let mut steps = vec![(RANGE_DEG.0, 0.0)];
+    for (k, &error) in errors.iter().enumerate() {
+        let x = error.clamp(RANGE_DEG.0, RANGE_DEG.1);
+        steps.push((x, k as f64 / n));
+        steps.push((x, (k + 1) as f64 / n));
+    }
+    steps.push((RANGE_DEG.1, errors.len() as f64 / n));
+    steps
+}
+
 #[cfg(test)]
 mod tests {
     use std::collections::BTreeMap;
 
+    use proptest::prelude::*;
     use pseudo_label::ObjectLabelScores;
 
     use super::*;
+
+    proptest! {
+        /// Between its corners the staircase stands at the share of errors at or below `x`,
+        /// counted one by one.
+        #[test]
+        fn the_staircase_is_the_share_of_errors_within_each_angle(
+            errors in prop::collection::vec(0.002f64..170.0, 1..40),
+            x in 0.002f64..170.0,
+        ) {
+            let steps = cumulative_steps(&errors);
+            prop_assert!(steps.windows(2).all(|w| w[0].0 <= w[1].0 && w[0].1 <= w[1].1));
+            prop_assert_eq!(steps.first().copied(), Some((RANGE_DEG.0, 0.0)));
+            prop_assert_eq!(steps.last().copied(), Some((RANGE_DEG.1, 1.0)));
+            // The staircase's height at x: the last corner at or left of x.
+            let height = steps.iter().rev().find(|(corner, _)| *corner <= x).unwrap().1;
+            let within = errors.iter().filter(|&&e| e <= x).count() as f64 / errors.len() as f64;
+            prop_assert!((height - within).abs() < 1e-12, "{height} against {within}");
+        }
+    }
 
     #[test]
     fn each_object_gets_its_colour() {
