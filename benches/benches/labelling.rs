@@ -29,14 +29,9 @@ fn labelling(c: &mut Criterion) {
     for kind in [ObjectKind::Can, ObjectKind::Box] {
         let object = SynthObject::built_in(kind).unwrap();
         let style = FrameStyle {
-            material: Material::Uniform(object.colour),
-            random_surface: false,
-            distractors: 0,
-            occluders: 0,
             sensor: Some(DepthSensor::kinect()),
             mask_errors: Some(MaskErrors::default()),
-            randomization: synth_data::Randomization::NONE,
-            borrowed_textures: Vec::new(),
+            ..FrameStyle::plain(Material::Uniform(object.colour))
         };
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
         let frame = FrameRenderer::new(&object.mesh)

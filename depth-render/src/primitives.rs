@@ -48,21 +48,39 @@ pub fn cylinder(radius: f64, height: f64, segments: u32) -> Result<TriangleMesh,
     )
 }
 
-/// A mug opening towards +z: a cylindrical cup of `radius` and `height` whose wall and floor
-/// are `wall` thick, with a handle on its +x side, a tube `handle_thickness` across bent along
+/// The dimensions of a [`mug`] (metres).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MugShape {
+    /// Cup radius.
+    pub radius: f64,
+    /// Cup height along z.
+    pub height: f64,
+    /// Wall and floor thickness.
+    pub wall: f64,
+    /// Radius of the circle the handle's tube follows, centred on the wall.
+    pub handle_reach: f64,
+    /// Diameter of the handle's tube.
+    pub handle_thickness: f64,
+    /// Segments around the body.
+    pub segments: u32,
+}
+
+/// A mug opening towards +z (`shape`): a cylindrical cup of `radius` and `height` whose wall
+/// and floor are `wall` thick, with a handle on its +x side, a tube `handle_thickness` across bent along
 /// a half circle of radius `handle_reach` in the xz-plane centred on the outer wall (it stands
 /// `handle_reach + handle_thickness / 2` out and spans `±handle_reach` in z), capped flat
 /// against the wall. Bounding box of the cup centred at the origin; `segments` around the cup,
 /// a quarter of them around the tube. No rotation maps it onto itself: the handle breaks the
 /// turns about the axis, the open top the half turns that swap its ends.
-pub fn mug(
-    radius: f64,
-    height: f64,
-    wall: f64,
-    handle_reach: f64,
-    handle_thickness: f64,
-    segments: u32,
-) -> Result<TriangleMesh, RenderError> {
+pub fn mug(shape: &MugShape) -> Result<TriangleMesh, RenderError> {
+    let MugShape {
+        radius,
+        height,
+        wall,
+        handle_reach,
+        handle_thickness,
+        segments,
+    } = *shape;
     check_dimension("radius", radius)?;
     check_dimension("height", height)?;
     check_dimension("handle_reach", handle_reach)?;
@@ -95,50 +113,77 @@ pub fn mug(
     )?;
     let mut positions: Vec<Point3<f64>> = cup.positions().iter().map(|p| p.cast()).collect();
     let mut triangles = cup.triangles().to_vec();
-    let offset = positions.len() as u32;
-    let (steps, around) = (segments.max(8), (segments / 4).max(6));
-    let centre_line = |i: u32| {
-        let theta = std::f64::consts::PI * (f64::from(i) / f64::from(steps) - 0.5);
-        let outward = Vector3::new(theta.cos(), 0.0, theta.sin());
-        (
-            Point3::new(radius, 0.0, 0.0) + outward * handle_reach,
-            outward,
-        )
+    let handle = Handle {
+        radius,
+        reach: handle_reach,
+        tube,
     };
-    for i in 0..=steps {
-        let (centre, outward) = centre_line(i);
-        for j in 0..around {
-            let phi = std::f64::consts::TAU * f64::from(j) / f64::from(around);
-            positions.push(centre + tube * (phi.cos() * outward + phi.sin() * Vector3::y()));
-        }
-    }
-    let ring = |i: u32, j: u32| offset + i * around + j % around;
-    for i in 0..steps {
-        for j in 0..around {
-            let (a, b, c, d) = (
-                ring(i, j),
-                ring(i, j + 1),
-                ring(i + 1, j + 1),
-                ring(i + 1, j),
-            );
-            triangles.extend([[a, b, c], [a, c, d]]);
-        }
-    }
-    // The caps lie flat against the wall (the plane x = radius, touching it along the tube's
-    // middle): facing −z at the lower end, +z at the upper.
-    for (i, upper) in [(0, false), (steps, true)] {
-        let centre = positions.len() as u32;
-        positions.push(centre_line(i).0);
-        for j in 0..around {
-            let (a, b) = (ring(i, j), ring(i, j + 1));
-            triangles.push(if upper {
-                [centre, a, b]
-            } else {
-                [centre, b, a]
-            });
-        }
-    }
+    handle.append_to(&mut positions, &mut triangles, segments);
     mesh(positions, triangles)
+}
+
+/// A mug's handle: a tube of radius `tube` bent along a half circle of radius `reach` in the
+/// xz-plane, centred on the cup's outer wall at x = `radius`, capped flat against the wall.
+struct Handle {
+    radius: f64,
+    reach: f64,
+    tube: f64,
+}
+
+impl Handle {
+    /// Appends the handle's vertices and triangles: `segments.max(8)` steps along the half
+    /// circle, `(segments / 4).max(6)` around the tube.
+    fn append_to(
+        &self,
+        positions: &mut Vec<Point3<f64>>,
+        triangles: &mut Vec<[u32; 3]>,
+        segments: u32,
+    ) {
+        let offset = positions.len() as u32;
+        let (steps, around) = (segments.max(8), (segments / 4).max(6));
+        let centre_line = |i: u32| {
+            let theta = std::f64::consts::PI * (f64::from(i) / f64::from(steps) - 0.5);
+            let outward = Vector3::new(theta.cos(), 0.0, theta.sin());
+            (
+                Point3::new(self.radius, 0.0, 0.0) + outward * self.reach,
+                outward,
+            )
+        };
+        for i in 0..=steps {
+            let (centre, outward) = centre_line(i);
+            for j in 0..around {
+                let phi = std::f64::consts::TAU * f64::from(j) / f64::from(around);
+                positions
+                    .push(centre + self.tube * (phi.cos() * outward + phi.sin() * Vector3::y()));
+            }
+        }
+        let ring = |i: u32, j: u32| offset + i * around + j % around;
+        for i in 0..steps {
+            for j in 0..around {
+                let (a, b, c, d) = (
+                    ring(i, j),
+                    ring(i, j + 1),
+                    ring(i + 1, j + 1),
+                    ring(i + 1, j),
+                );
+                triangles.extend([[a, b, c], [a, c, d]]);
+            }
+        }
+        // The caps lie flat against the wall (the plane x = radius, touching it along the tube's
+        // middle): facing −z at the lower end, +z at the upper.
+        for (i, upper) in [(0, false), (steps, true)] {
+            let centre = positions.len() as u32;
+            positions.push(centre_line(i).0);
+            for j in 0..around {
+                let (a, b) = (ring(i, j), ring(i, j + 1));
+                triangles.push(if upper {
+                    [centre, a, b]
+                } else {
+                    [centre, b, a]
+                });
+            }
+        }
+    }
 }
 
 /// A closed cone: base of `radius` at `z = −height/2`, apex at `z = +height/2`.

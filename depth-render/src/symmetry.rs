@@ -3,7 +3,8 @@
 //! turns them into the scoring crate's groups).
 use nalgebra::{Matrix3, Rotation3, Unit, UnitQuaternion, Vector3};
 
-use crate::{RenderError, TriangleMesh, primitives};
+use crate::primitives::{self, MugShape};
+use crate::{RenderError, TriangleMesh};
 
 /// The proper symmetries of a shape about its origin: it looks the same turned by any of them.
 #[derive(Debug, Clone, PartialEq)]
@@ -54,20 +55,7 @@ pub enum Primitive {
         rings: u32,
     },
     /// A mug: a cup opening towards +z with a handle on its +x side ([`primitives::mug`]).
-    Mug {
-        /// Cup radius.
-        radius: f64,
-        /// Cup height along z.
-        height: f64,
-        /// Wall and floor thickness.
-        wall: f64,
-        /// Radius of the circle the handle's tube follows, centred on the wall.
-        handle_reach: f64,
-        /// Diameter of the handle's tube.
-        handle_thickness: f64,
-        /// Segments around the body.
-        segments: u32,
-    },
+    Mug(MugShape),
     /// A subdivided icosahedron.
     Sphere {
         /// Radius.
@@ -121,21 +109,7 @@ impl Primitive {
                 segments,
                 rings,
             } => primitives::bowl(radius, height, thickness, segments, rings),
-            Self::Mug {
-                radius,
-                height,
-                wall,
-                handle_reach,
-                handle_thickness,
-                segments,
-            } => primitives::mug(
-                radius,
-                height,
-                wall,
-                handle_reach,
-                handle_thickness,
-                segments,
-            ),
+            Self::Mug(shape) => primitives::mug(&shape),
             Self::Sphere {
                 radius,
                 subdivisions,
@@ -178,7 +152,7 @@ impl Primitive {
         Ok(match self {
             Self::Cylinder { .. } => revolution(true),
             Self::Cone { .. } | Self::Bowl { .. } => revolution(false),
-            Self::Mug { .. } => ShapeSymmetry {
+            Self::Mug(_) => ShapeSymmetry {
                 discrete: Vec::new(),
                 continuous: Vec::new(),
             },

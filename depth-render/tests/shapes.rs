@@ -1,6 +1,7 @@
 //! Primitive shapes: exact solids of revolution, analytic symmetry groups, resting poses.
 use std::collections::HashMap;
 
+use depth_render::primitives::MugShape;
 use depth_render::{
     Instance, PinholeCamera, Primitive, RenderError, Scene, TriangleMesh, Window,
     group_by_symmetry, primitives, resting_poses,
@@ -329,7 +330,15 @@ fn regular_solids_and_a_bowl_rest_as_expected() {
 #[test]
 fn a_mug_is_a_closed_cup_with_a_handle() {
     let (radius, height, wall, reach, thickness, n) = (0.04, 0.095, 0.004, 0.03, 0.008, 96u32);
-    let mug = primitives::mug(radius, height, wall, reach, thickness, n).unwrap();
+    let dimensions = MugShape {
+        radius,
+        height,
+        wall,
+        handle_reach: reach,
+        handle_thickness: thickness,
+        segments: n,
+    };
+    let mug = primitives::mug(&dimensions).unwrap();
     assert!(closed(&mug));
     let (lo, hi) = mug.bounds();
     assert!(
@@ -349,23 +358,21 @@ fn a_mug_is_a_closed_cup_with_a_handle() {
         "{volume} against {}",
         cup + handle
     );
-    let shape = Primitive::Mug {
-        radius,
-        height,
-        wall,
-        handle_reach: reach,
-        handle_thickness: thickness,
-        segments: n,
-    };
-    let symmetry = shape.symmetry().unwrap();
+    let symmetry = Primitive::Mug(dimensions).symmetry().unwrap();
     assert!(symmetry.discrete.is_empty() && symmetry.continuous.is_empty());
     for (bad, name) in [
         (
-            primitives::mug(radius, height, wall, 0.046, thickness, n),
+            primitives::mug(&MugShape {
+                handle_reach: 0.046,
+                ..dimensions
+            }),
             "handle_reach",
         ),
         (
-            primitives::mug(radius, height, 0.03, reach, thickness, n),
+            primitives::mug(&MugShape {
+                wall: 0.03,
+                ..dimensions
+            }),
             "wall",
         ),
     ] {
@@ -380,14 +387,14 @@ fn a_mug_is_a_closed_cup_with_a_handle() {
 /// of the tessellated cup), with the handle towards the camera it moves the handle's pixels.
 #[test]
 fn a_mug_turned_about_its_axis_looks_the_same_only_with_its_handle_hidden() {
-    let shape = Primitive::Mug {
+    let shape = Primitive::Mug(MugShape {
         radius: 0.04,
         height: 0.095,
         wall: 0.004,
         handle_reach: 0.03,
         handle_thickness: 0.008,
         segments: 256,
-    };
+    });
     let scene = Scene::new(&[shape.mesh().unwrap()]);
     // Model z up the image (camera −y); the handle (+x) away from the camera (+z) or towards it.
     let upright = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::FRAC_PI_2);

@@ -81,16 +81,7 @@ fn check_registration(mesh: &TriangleMesh) -> Result<()> {
 /// ipdf-metrics scores the best label against the rendered pose (ADD).
 fn check_labelled_render(mesh: &TriangleMesh) -> Result<()> {
     let camera = PinholeCamera::new(1066.8, 1067.5, 312.99, 241.31, 640, 480)?;
-    let style = FrameStyle {
-        material: Material::Uniform([0.9, 0.8, 0.1]),
-        random_surface: false,
-        distractors: 0,
-        occluders: 0,
-        sensor: None,
-        mask_errors: None,
-        randomization: synth_data::Randomization::NONE,
-        borrowed_textures: Vec::new(),
-    };
+    let style = FrameStyle::plain(Material::Uniform([0.9, 0.8, 0.1]));
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
     let frame =
         FrameRenderer::new(mesh)?.render(&camera, &ViewRange::default(), &style, &mut rng)?;

@@ -17,14 +17,10 @@ fn main() -> Result<()> {
     let object = SynthObject::built_in(ObjectKind::Box)?;
     let camera = SynthOptions::t_less_camera().camera;
     let style = FrameStyle {
-        material: Material::Uniform(object.colour),
-        random_surface: false,
         distractors: 2,
-        occluders: 0,
         sensor: Some(DepthSensor::kinect()),
         mask_errors: Some(MaskErrors::default()),
-        randomization: synth_data::Randomization::NONE,
-        borrowed_textures: Vec::new(),
+        ..FrameStyle::plain(Material::Uniform(object.colour))
     };
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
     let frame = FrameRenderer::new(&object.mesh)?.render(

@@ -12,6 +12,7 @@ use anyhow::Result;
 use bop_dataset::write_atomically;
 use clap::Parser;
 use ipdf::cloud_file::write_cloud;
+use ipdf::median::median;
 use nalgebra::{Isometry3, Point3};
 use registration::{
     NormalOrientation, PointCloud, PrepareOptions, PreparedCloud, RegisterOptions, prepare_cloud,
@@ -107,11 +108,6 @@ fn run_trial(
         Err(error) => result.error = Some(error.to_string()),
     }
     Ok(result)
-}
-
-fn median(values: &mut [f64]) -> f64 {
-    values.sort_by(f64::total_cmp);
-    values.get(values.len() / 2).copied().unwrap_or(f64::NAN)
 }
 
 fn main() -> Result<()> {

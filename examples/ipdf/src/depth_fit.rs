@@ -36,7 +36,7 @@ use pseudo_label::{
     LabelOptions, ObjectModel, Observation, PixelLattice, SeededPose, pose_from_hypotheses,
 };
 
-use crate::eval::instances::median;
+use crate::median::median;
 
 /// Fewest masked pixels with both a depth reading and the rendered surface a step needs.
 pub const MIN_PIXELS: usize = 30;

@@ -28,6 +28,7 @@ pub mod cloud_file;
 pub mod depth_fit;
 mod error;
 pub mod eval;
+pub mod median;
 pub mod npy;
 pub mod pipeline;
 pub mod plots;

@@ -192,18 +192,7 @@ pub fn train_model(request: &TrainRequest, progress: &dyn Progress) -> Result<Tr
         },
     )?;
     let validation = validation_examples(&dataset, request, &examples)?;
-    let info = RunInfo {
-        dataset: std::path::absolute(&request.dataset)
-            .map_err(|e| bop_dataset::FileError::new(&request.dataset, "folder", e.to_string()))?,
-        models_dir: request.models_dir.clone(),
-        split: request.split.clone(),
-        labels: request.labels.name().to_string(),
-        target: request.target.name().to_string(),
-        obj_id,
-        object: object.clone(),
-        occlusion: request.occlusion,
-        crop: request.crop,
-    };
+    let info = run_info(request, obj_id, &object)?;
     let (step, reports) = match request.target {
         Target::Rotation => {
             let mut trainer = open_trainer(request, &info)?;
@@ -246,22 +235,62 @@ pub fn train_model(request: &TrainRequest, progress: &dyn Progress) -> Result<Tr
             ));
         }
     };
-    let last = reports.last();
-    Ok(TrainResult {
-        run: request.out.clone(),
-        object,
-        obj_id,
+    let images = (
+        train.instances.len(),
+        validation.as_ref().map(|v| validated(v, request)),
+    );
+    Ok(TrainResult::of(
+        request,
+        (obj_id, object),
+        images,
+        step,
+        &reports,
+    ))
+}
+
+/// The `run.json` of `request`'s run of object `obj_id` called `object`.
+fn run_info(request: &TrainRequest, obj_id: u32, object: &str) -> Result<RunInfo, Error> {
+    Ok(RunInfo {
+        dataset: std::path::absolute(&request.dataset)
+            .map_err(|e| bop_dataset::FileError::new(&request.dataset, "folder", e.to_string()))?,
+        models_dir: request.models_dir.clone(),
+        split: request.split.clone(),
         labels: request.labels.name().to_string(),
         target: request.target.name().to_string(),
-        train_images: train.instances.len(),
-        validation_images: validation.as_ref().map(|v| validated(v, request)),
-        step,
-        epochs_run: reports.len(),
-        loss: last.map(|r| r.loss),
-        validation_llh: last.and_then(|r| r.validation_llh),
-        images_per_s: last.map(|r| r.images_per_second),
-        seconds: reports.iter().map(|r| r.seconds).sum(),
+        obj_id,
+        object: object.to_string(),
+        occlusion: request.occlusion,
+        crop: request.crop,
     })
+}
+
+impl TrainResult {
+    /// The result of `request`'s run of `object` (id, name) on `images` (training crops,
+    /// validation crops where validated), at `step`, from its epochs' `reports`.
+    fn of(
+        request: &TrainRequest,
+        (obj_id, object): (u32, String),
+        (train_images, validation_images): (usize, Option<usize>),
+        step: u64,
+        reports: &[EpochReport],
+    ) -> Self {
+        let last = reports.last();
+        Self {
+            run: request.out.clone(),
+            object,
+            obj_id,
+            labels: request.labels.name().to_string(),
+            target: request.target.name().to_string(),
+            train_images,
+            validation_images,
+            step,
+            epochs_run: reports.len(),
+            loss: last.map(|r| r.loss),
+            validation_llh: last.and_then(|r| r.validation_llh),
+            images_per_s: last.map(|r| r.images_per_second),
+            seconds: reports.iter().map(|r| r.seconds).sum(),
+        }
+    }
 }
 
 /// The most members an ensemble of rotation models has.

@@ -790,16 +790,7 @@ pub fn rendered_examples(
 ) -> Result<Examples, Error> {
     let renderer = synth_data::FrameRenderer::new(&object.mesh)?;
     let camera = synth_data::SynthOptions::t_less_camera().camera;
-    let style = synth_data::FrameStyle {
-        material: depth_render::Material::Uniform(object.colour),
-        random_surface: false,
-        distractors: 0,
-        occluders: 0,
-        sensor: None,
-        mask_errors: None,
-        randomization: synth_data::Randomization::NONE,
-        borrowed_textures: Vec::new(),
-    };
+    let style = synth_data::FrameStyle::plain(depth_render::Material::Uniform(object.colour));
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let (width, height) = (camera.width as usize, camera.height as usize);
     let intrinsics = Intrinsics {

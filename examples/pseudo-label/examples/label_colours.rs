@@ -16,8 +16,8 @@ use std::error::Error;
 use std::path::{Path, PathBuf};
 
 use bop_dataset::{
-    BopDataset, mesh_appearance, read_depth, read_mask, read_pseudo_gt, read_rgb,
-    read_scene_camera, read_scene_gt,
+    BopDataset, GtInstance, PseudoLabel, mesh_appearance, read_depth, read_mask, read_pseudo_gt,
+    read_rgb, read_scene_camera, read_scene_gt,
 };
 use pseudo_label::{
     LabelOptions, ObjectModel, Observation, PixelLattice, appearance_keeps, appearance_match,
@@ -71,15 +71,7 @@ fn main() -> Result<(), Box<dyn Error>> {
                     continue;
                 };
                 let observation = observation.with_colour(&colour);
-                let labels: Vec<(f64, Option<f64>)> = instance
-                    .labels
-                    .iter()
-                    .map(|label| {
-                        let angle = label.pose.rotation.angle_to(&truth.pose.rotation);
-                        let matched = appearance_match(&model, &observation, &label.pose);
-                        (angle.to_degrees(), matched)
-                    })
-                    .collect();
+                let labels = matched_labels(&model, &observation, &instance.labels, truth);
                 let shown: Vec<String> = labels
                     .iter()
                     .map(|(angle, m)| {
@@ -106,6 +98,23 @@ fn main() -> Result<(), Box<dyn Error>> {
         );
     }
     Ok(())
+}
+
+/// Each of `labels`' angle to the ground truth `truth` (degrees) and its colour match.
+fn matched_labels(
+    model: &ObjectModel,
+    observation: &Observation,
+    labels: &[PseudoLabel],
+    truth: &GtInstance,
+) -> Vec<(f64, Option<f64>)> {
+    labels
+        .iter()
+        .map(|label| {
+            let angle = label.pose.rotation.angle_to(&truth.pose.rotation);
+            let matched = appearance_match(model, observation, &label.pose);
+            (angle.to_degrees(), matched)
+        })
+        .collect()
 }
 
 /// Labels within 5° of the truth dropped, such labels, other labels dropped, other labels: by

@@ -23,7 +23,7 @@ use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 use registration::{IcpOptions, PreparedCloud, WeakTurn, weak_turns};
 use so3_grid::geodesic_distance;
 
-use crate::instance::{MAX_NORMAL_ANGLE, accepted_pose, place_rotation, refine_shift};
+use crate::placement::{MAX_NORMAL_ANGLE, accepted_pose, place_rotation, refine_shift};
 use crate::score::Acceptance;
 use crate::symmetries::SymmetryAxis;
 use crate::{LabelOptions, ObjectModel, Observation};
@@ -32,7 +32,7 @@ use crate::{LabelOptions, ObjectModel, Observation};
 type Scored = (Isometry3<f64>, f64);
 
 /// A turn whose eigenvalue is under this fraction of the largest is walked: looser than the
-/// refinement's 10⁻³ ([`crate::instance`]), since a walk that the view does not allow ends at
+/// refinement's 10⁻³ ([`crate::placement`]), since a walk that the view does not allow ends at
 /// its first step, and a can's turn about its axis measured up to 2·10⁻³ on Kinect depth.
 const WALK_RATIO: f64 = 1e-2;
 

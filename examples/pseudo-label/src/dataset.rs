@@ -765,6 +765,12 @@ fn label_image(
                 &lattice,
             )
         });
+    let sampled = SampledImage {
+        size: (depth.width, depth.height),
+        lattice: &lattice,
+        depth: &sampled_depth,
+        colour: sampled_colour.as_ref(),
+    };
     obj_ids
         .iter()
         .enumerate()
@@ -772,74 +778,113 @@ fn label_image(
             let Some(model) = models.get(&obj_id).and_then(Option::as_ref) else {
                 return failed_instance(obj_id, &LabelFailure::UnknownObject { obj_id });
             };
-            let mask_path = scene.visible_mask_path(im_id, k);
-            let mask = match read_mask(&mask_path) {
-                Ok(mask) => mask,
-                Err(error) => {
-                    return failed_instance(obj_id, &LabelFailure::Input(error.to_string()));
-                }
-            };
-            if (mask.width, mask.height) != (depth.width, depth.height) {
-                let failure = LabelFailure::MaskSize {
-                    mask: mask_path,
-                    mask_width: mask.width,
-                    mask_height: mask.height,
-                    width: depth.width,
-                    height: depth.height,
-                };
-                return failed_instance(obj_id, &failure);
-            }
-            let sampled_mask = lattice.sample(&mask.pixels, false);
-            let Some(mut observation) =
-                Observation::new(lattice.camera, &sampled_depth, &sampled_mask)
-            else {
-                return failed_instance(obj_id, &LabelFailure::EmptyMask);
-            };
-            let mut colour_warning = None;
-            match &sampled_colour {
-                Some(Ok(colour)) => observation = observation.with_colour(colour),
-                Some(Err(warning)) if coloured(&obj_id) => colour_warning = Some(warning.clone()),
-                _ => {}
-            }
-            let seed = instance_seed(options.seed, scene.id, im_id, k);
-            let found = (job.label)(
-                model,
-                &observation,
-                per_object.get(&obj_id).unwrap_or(options),
-                seed,
-            );
-            let sensor_score = found.labels.as_ref().ok().and_then(|labels| {
-                let best = labels.iter().map(|l| l.score).min_by(f64::total_cmp)?;
-                let ratio = noise_ratio(&observation, &options.sensor.sensor());
-                Some(best - LabelOptions::noise_shift(ratio))
-            });
-            let (labels, error, kind) = match &found.labels {
-                Ok(labels) => (labels.clone(), None, None),
-                Err(failure) => (Vec::new(), Some(failure.to_string()), Some(failure.kind())),
-            };
-            let best = match found.labels {
-                Err(LabelFailure::NoPoseAccepted {
-                    best, best_pose, ..
-                }) if best.is_finite() => Some(PseudoLabel {
-                    pose: best_pose,
-                    score: best,
-                }),
-                _ => None,
-            };
-            let instance = PseudoInstance {
+            let object_options = per_object.get(&obj_id).unwrap_or(options);
+            let instance = InstanceInput {
                 obj_id,
-                labels,
-                error,
-                warning: join_warnings(found.warning, colour_warning),
-                best,
+                k,
+                model,
+                coloured: coloured(&obj_id),
             };
-            Outcome {
-                instance,
-                failure: kind,
-                sensor_score,
-            }
+            label_one(image, &sampled, &instance, (options, object_options), job)
         })
         .collect()
+}
+
+/// An image's depth (and colour, where read) sampled on the labelling's pixel lattice.
+struct SampledImage<'a> {
+    /// The depth image's width and height (pixels): every mask must have them.
+    size: (u32, u32),
+    lattice: &'a PixelLattice,
+    depth: &'a [f32],
+    /// The colour where the rule reads it, or why it could not be read.
+    colour: Option<&'a Result<Vec<[u8; 3]>, String>>,
+}
+
+/// One instance of an image: its object, its index among the image's masks, the object's
+/// model and whether the colour rule applies to it.
+struct InstanceInput<'a> {
+    obj_id: u32,
+    k: usize,
+    model: &'a ObjectModel,
+    coloured: bool,
+}
+
+/// The labels of instance `instance` of `image`, by `job`: its mask read and checked, then the
+/// labeller run with `options.1` (the object's options; `options.0` the run's, whose sensor
+/// and seed apply).
+fn label_one(
+    image: &Image,
+    sampled: &SampledImage,
+    instance: &InstanceInput,
+    (options, object_options): (&LabelOptions, &LabelOptions),
+    job: &Job,
+) -> Outcome {
+    let InstanceInput {
+        obj_id,
+        k,
+        model,
+        coloured,
+    } = *instance;
+    let mask_path = image.scene.visible_mask_path(image.im_id, k);
+    let mask = match read_mask(&mask_path) {
+        Ok(mask) => mask,
+        Err(error) => return failed_instance(obj_id, &LabelFailure::Input(error.to_string())),
+    };
+    let (width, height) = sampled.size;
+    if (mask.width, mask.height) != (width, height) {
+        let failure = LabelFailure::MaskSize {
+            mask: mask_path,
+            mask_width: mask.width,
+            mask_height: mask.height,
+            width,
+            height,
+        };
+        return failed_instance(obj_id, &failure);
+    }
+    let sampled_mask = sampled.lattice.sample(&mask.pixels, false);
+    let Some(mut observation) =
+        Observation::new(sampled.lattice.camera, sampled.depth, &sampled_mask)
+    else {
+        return failed_instance(obj_id, &LabelFailure::EmptyMask);
+    };
+    let mut colour_warning = None;
+    match sampled.colour {
+        Some(Ok(colour)) => observation = observation.with_colour(colour),
+        Some(Err(warning)) if coloured => colour_warning = Some(warning.clone()),
+        _ => {}
+    }
+    let seed = instance_seed(options.seed, image.scene.id, image.im_id, k);
+    let found = (job.label)(model, &observation, object_options, seed);
+    let sensor_score = found.labels.as_ref().ok().and_then(|labels| {
+        let best = labels.iter().map(|l| l.score).min_by(f64::total_cmp)?;
+        let ratio = noise_ratio(&observation, &options.sensor.sensor());
+        Some(best - LabelOptions::noise_shift(ratio))
+    });
+    let (labels, error, kind) = match &found.labels {
+        Ok(labels) => (labels.clone(), None, None),
+        Err(failure) => (Vec::new(), Some(failure.to_string()), Some(failure.kind())),
+    };
+    let best = match found.labels {
+        Err(LabelFailure::NoPoseAccepted {
+            best, best_pose, ..
+        }) if best.is_finite() => Some(PseudoLabel {
+            pose: best_pose,
+            score: best,
+        }),
+        _ => None,
+    };
+    let instance = PseudoInstance {
+        obj_id,
+        labels,
+        error,
+        warning: join_warnings(found.warning, colour_warning),
+        best,
+    };
+    Outcome {
+        instance,
+        failure: kind,
+        sensor_score,
+    }
 }
 
 #[cfg(test)]

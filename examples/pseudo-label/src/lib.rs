@@ -25,14 +25,9 @@
 //! let object = SynthObject::built_in(ObjectKind::Box)?;
 //! let camera = SynthOptions::t_less_camera().camera;
 //! let style = FrameStyle {
-//!     material: Material::Uniform(object.colour),
-//!     random_surface: false,
-//!     distractors: 0,
-//!     occluders: 0,
 //!     sensor: Some(DepthSensor::kinect()),
 //!     mask_errors: Some(MaskErrors::default()),
-//!     randomization: synth_data::Randomization::NONE,
-//!     borrowed_textures: Vec::new(),
+//!     ..FrameStyle::plain(Material::Uniform(object.colour))
 //! };
 //! let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
 //! let frame = FrameRenderer::new(&object.mesh)?.render(&camera, &ViewRange::default(), &style, &mut rng)?;
@@ -56,6 +51,7 @@ mod early_stop;
 mod error;
 mod instance;
 mod model;
+mod placement;
 mod reference;
 mod report;
 mod score;
@@ -69,11 +65,11 @@ pub use dataset::{
 };
 pub use error::LabelError;
 pub use instance::{
-    InstanceLabels, LabelFailure, align_from, compare_in, extent_warning, global_alignment,
-    initial_pose, label_instance, noise_ratio, observed_cloud, observed_features, refine_pose,
-    score_pose,
+    InstanceLabels, LabelFailure, align_from, extent_warning, global_alignment, initial_pose,
+    label_instance, noise_ratio, observed_cloud, observed_features,
 };
 pub use model::ObjectModel;
+pub use placement::{compare_in, refine_pose, score_pose};
 pub use reference::{ReferenceOptions, ReferenceSet, reference_set};
 pub use report::{
     COVERAGE_ANGLE_DEG, InstanceAgainstReference, LabelReport, ObjectLabelScores, VISIBILITY_BINS,

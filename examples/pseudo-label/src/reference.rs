@@ -38,7 +38,8 @@ use rayon::prelude::*;
 use so3_grid::{Grid, geodesic_distance};
 
 use crate::appearance::keep_by_appearance;
-use crate::instance::{Candidate, LabelFailure, grid_alignments, place_rotation, prepare_view};
+use crate::instance::{Candidate, LabelFailure, grid_alignments, prepare_view};
+use crate::placement::place_rotation;
 use crate::score::Acceptance;
 use crate::{LabelError, LabelOptions, ObjectModel, Observation};
 use bop_dataset::PseudoLabel;

@@ -11,7 +11,8 @@
 use nalgebra::{Isometry3, UnitQuaternion};
 use rayon::prelude::*;
 
-use crate::instance::{Candidate, LabelFailure, align_from, placed, prepare_view};
+use crate::instance::{Candidate, LabelFailure, align_from, prepare_view};
+use crate::placement::placed;
 use crate::{LabelOptions, ObjectModel, Observation};
 
 /// The pose chosen from the hypotheses.

@@ -100,14 +100,12 @@ fn the_print_drops_a_boxs_half_turns_from_its_labels_and_keeps_its_pose() {
     let (mesh, appearance) = pudding();
     let camera = SynthOptions::default().camera.camera;
     let style = FrameStyle {
-        material: appearance,
-        random_surface: false,
         distractors: 2,
         occluders: 1,
         sensor: Some(DepthSensor::kinect()),
         mask_errors: Some(MaskErrors::default()),
         randomization: Randomization::ALL,
-        borrowed_textures: Vec::new(),
+        ..FrameStyle::plain(appearance)
     };
     let renderer = FrameRenderer::new(&mesh).unwrap();
     let off = LabelOptions::default();

@@ -18,14 +18,8 @@ const FIVE_DEGREES: f64 = 5.0 * std::f64::consts::PI / 180.0;
 fn frame(object: &SynthObject, seed: u64) -> (PinholeCamera, Frame) {
     let camera = SynthOptions::t_less_camera().camera;
     let style = FrameStyle {
-        material: Material::Uniform(object.colour),
-        random_surface: false,
-        distractors: 0,
-        occluders: 0,
         sensor: Some(DepthSensor::kinect()),
-        mask_errors: None,
-        randomization: synth_data::Randomization::NONE,
-        borrowed_textures: Vec::new(),
+        ..FrameStyle::plain(Material::Uniform(object.colour))
     };
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let renderer = FrameRenderer::new(&object.mesh).unwrap();

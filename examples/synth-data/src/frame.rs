@@ -255,6 +255,23 @@ pub struct FrameStyle {
     pub borrowed_textures: Vec<ImageTexture>,
 }
 
+impl FrameStyle {
+    /// The plain look of an object of `material`: alone on the table, clean depth, the exact
+    /// mask, nothing drawn at random. Other styles start from it (`..FrameStyle::plain(m)`).
+    pub fn plain(material: Material) -> Self {
+        Self {
+            material,
+            random_surface: false,
+            distractors: 0,
+            occluders: 0,
+            sensor: None,
+            mask_errors: None,
+            randomization: Randomization::NONE,
+            borrowed_textures: Vec::new(),
+        }
+    }
+}
+
 impl FrameRenderer {
     /// A renderer of frames of `mesh` (metres).
     pub fn new(mesh: &TriangleMesh) -> Result<Self, SynthError> {
@@ -635,14 +652,9 @@ mod tests {
         let renderer = FrameRenderer::new(&object.mesh).unwrap();
         let camera = crate::SynthOptions::t_less_camera().camera;
         let style = FrameStyle {
-            material: Material::Uniform(object.colour),
-            random_surface: false,
             distractors,
             occluders,
-            sensor: None,
-            mask_errors: None,
-            randomization: Randomization::NONE,
-            borrowed_textures: Vec::new(),
+            ..FrameStyle::plain(Material::Uniform(object.colour))
         };
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
         (0..24)

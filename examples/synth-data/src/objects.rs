@@ -4,6 +4,7 @@
 use std::path::Path;
 
 use bop_dataset::{FileError, mesh_appearance};
+use depth_render::primitives::MugShape;
 use depth_render::{Material, MeshRepairs, Primitive, TriangleMesh, load_mesh};
 use ipdf_metrics::SymmetryGroup;
 
@@ -114,14 +115,14 @@ impl ObjectKind {
                 height: 0.12,
                 segments: 96,
             },
-            Self::Mug => Primitive::Mug {
+            Self::Mug => Primitive::Mug(MugShape {
                 radius: 0.04,
                 height: 0.095,
                 wall: 0.004,
                 handle_reach: 0.03,
                 handle_thickness: 0.008,
                 segments: 96,
-            },
+            }),
         }
     }
 

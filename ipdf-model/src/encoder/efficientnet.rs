@@ -24,13 +24,13 @@ struct Stage {
 }
 
 const STAGES: [Stage; 7] = [
-    stage(1, 3, 1, 1, 32, 16),
-    stage(2, 3, 2, 6, 16, 24),
-    stage(2, 5, 2, 6, 24, 40),
-    stage(3, 3, 2, 6, 40, 80),
-    stage(3, 5, 1, 6, 80, 112),
-    stage(4, 5, 2, 6, 112, 192),
-    stage(1, 3, 1, 6, 192, 320),
+    stage(1, [3, 1, 1, 32, 16]),
+    stage(2, [3, 2, 6, 16, 24]),
+    stage(2, [5, 2, 6, 24, 40]),
+    stage(3, [3, 2, 6, 40, 80]),
+    stage(3, [5, 1, 6, 80, 112]),
+    stage(4, [5, 2, 6, 112, 192]),
+    stage(1, [3, 1, 6, 192, 320]),
 ];
 
 /// The MBConv blocks of all stages (16).
@@ -43,14 +43,9 @@ pub(crate) const BLOCKS: usize = {
     count
 };
 
-const fn stage(
-    repeats: usize,
-    kernel: i64,
-    stride: i64,
-    expand: i64,
-    input: i64,
-    output: i64,
-) -> Stage {
+/// A [`Stage`] from `repeats` and `[kernel, stride, expand, input, output]`, in the order of
+/// the builder's block strings.
+const fn stage(repeats: usize, [kernel, stride, expand, input, output]: [i64; 5]) -> Stage {
     Stage {
         repeats,
         kernel,

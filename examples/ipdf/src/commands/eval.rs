@@ -7,7 +7,6 @@ use std::path::PathBuf;
 
 use anyhow::{Result, bail};
 use bop_dataset::{write_atomically, write_json};
-use depth_render::SensorPreset;
 use ipdf::eval::instances::markdown;
 use ipdf::eval::translation::is_translation_run;
 use ipdf::eval::{
@@ -68,15 +67,8 @@ pub struct EvalArgs {
     /// without depth under any visible mask is scored as without it.
     #[arg(long, default_value_t = 0)]
     pub depth_hypotheses: usize,
-    /// The depth camera of the frames, whose expected errors `--depth-hypotheses` compares the
-    /// poses in (as `ipdf label --sensor`).
-    #[arg(long, value_parser = choice::<SensorPreset>(), default_value = "kinect")]
-    pub sensor: SensorPreset,
-    /// Average the rotation model's image term over each crop and this many test-time views
-    /// of it, zoomed or shifted by 3% of its half-side (at most 8; 0: the crop alone, as the
-    /// paper scores; 8 is the mesh pipeline's).
-    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=8))]
-    pub views: u8,
+    #[command(flatten)]
+    pub frames: super::FrameArgs,
     /// Each crop's rotation estimate (its error, Acc@15°, the pose scored, the first depth
     /// hypothesis) is the centre of the ball of this many degrees holding the most probability
     /// instead of the most likely rotation: the estimate most often within that angle of the
@@ -104,8 +96,8 @@ pub fn run(args: &EvalArgs) -> Result<serde_json::Value> {
         per_instance: true,
         truth: args.truth,
         depth_hypotheses: args.depth_hypotheses,
-        sensor: args.sensor,
-        views: args.views.into(),
+        sensor: args.frames.sensor,
+        views: args.frames.views.into(),
         ball_deg: args.ball,
         ..EvalRequest::new(args.checkpoint.clone(), &args.split, args.level)
     };

@@ -11,6 +11,22 @@ pub mod synth;
 pub mod train;
 pub mod viz;
 
+/// How the rotation model and the depth are read on a frame, as `ipdf eval` and `ipdf predict`
+/// take them.
+#[derive(Debug, clap::Args)]
+pub struct FrameArgs {
+    /// The depth camera of the frames (`--depth`'s for predict), whose expected errors the
+    /// poses found from the rotation model's hypotheses with depth are compared in (as `ipdf
+    /// label --sensor`).
+    #[arg(long, value_parser = choice::choice::<depth_render::SensorPreset>(), default_value = "kinect")]
+    pub sensor: depth_render::SensorPreset,
+    /// Average the rotation model's image term over each crop and this many test-time views
+    /// of it, zoomed or shifted by 3% of its half-side (at most 8; 0: the crop alone, as the
+    /// paper scores; 8 is the mesh pipeline's).
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=8))]
+    pub views: u8,
+}
+
 /// Refuses a `flag` path that does not end in `.extension` (any case): the file is written in
 /// that format whatever its name, so another ending would mislabel it. `what` says what is
 /// written.

@@ -7,7 +7,6 @@
 use std::path::{Path, PathBuf};
 
 use super::check_extension;
-use super::choice::choice;
 use anyhow::{Context, Result, bail};
 use bop_dataset::{
     BopCamera, Intrinsics, camera_from_json, read_depth, read_json, read_mask, write_json,
@@ -64,15 +63,8 @@ pub struct PredictArgs {
     /// the model where it cannot (`"refined_with_depth"`; the library's `ipdf::depth_fit`).
     #[arg(long)]
     pub depth: Option<PathBuf>,
-    /// The depth camera of `--depth`, whose expected errors the rotation hypotheses are
-    /// compared in (as `ipdf label --sensor`).
-    #[arg(long, value_parser = choice::<SensorPreset>(), default_value = "kinect")]
-    pub sensor: SensorPreset,
-    /// Average the rotation model's image term over the crop and this many test-time views of
-    /// it, zoomed or shifted by 3% of its half-side (at most 8; 0: the crop alone; 8 is what
-    /// the mesh pipeline scores with).
-    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=8))]
-    pub views: u8,
+    #[command(flatten)]
+    pub frames: super::FrameArgs,
     /// Also give the centre of the ball of this many degrees holding the most probability
     /// (`"heaviest_ball"`: the rotation most likely within that angle of the truth, the mesh
     /// pipeline's estimate at 15; the argmax is where one peak rises highest).
@@ -109,24 +101,8 @@ pub fn run(args: &PredictArgs) -> Result<Value> {
     if args.depth.is_some() && args.mask.is_none() {
         bail!("--depth needs --mask: the object's own pixels (a box holds the background too)");
     }
-    let translation_only = is_translation_run(&args.checkpoint)?;
-    // One model, or the members of an ensemble (`ensemble.json`), the first's settings shared.
-    let members = (!translation_only)
-        .then(|| ImplicitPdf::load_ensemble(&args.checkpoint, default_device()))
-        .transpose()?
-        .unwrap_or_default();
+    let (members, translation, skipped) = load_models(args)?;
     let rotation = members.first();
-    // A pose run without intrinsics predicts the orientation, and says so once it has.
-    let (translation, skipped) = match &rotation {
-        None => (
-            Some(TranslationPdf::load(&args.checkpoint, default_device())?),
-            None,
-        ),
-        Some(model) if args.intrinsics.is_some() || args.camera.is_some() => {
-            (pose_translation_model(&args.checkpoint, model)?, None)
-        }
-        Some(_) => (None, pose_translation_dir(&args.checkpoint)),
-    };
     let size = match (&rotation, &translation) {
         (Some(model), _) => model.config().input_size,
         (None, Some(model)) => model.config().network.input_size,
@@ -170,22 +146,14 @@ pub fn run(args: &PredictArgs) -> Result<Value> {
         }
     }
     if let (Some(model), Some(geometry)) = (&translation, &geometry) {
-        let (t, summary) = predict_translation(model, &crop, geometry, args)?;
-        result["argmax"]["cam_t_m2c"] = json!([t.x, t.y, t.z]);
-        result["translation"] = summary;
-        if let (Some(view), Some(rotation)) = (&depth_view, most_likely) {
-            let pose = Isometry3::from_parts((t / 1000.0).into(), rotation);
-            match view.fit(&pose) {
-                Some(fitted) => {
-                    let f = fitted.translation.vector * 1000.0;
-                    result["argmax"]["fitted_cam_t_m2c"] = json!([f.x, f.y, f.z]);
-                }
-                None => eprintln!(
-                    "ipdf predict: fewer than {MIN_PIXELS} pixels of --mask read a depth where \
-                     the mesh at the most likely pose shows its surface: no fitted translation"
-                ),
-            }
-        }
+        add_translation(
+            &mut result,
+            model,
+            (&crop, geometry),
+            args,
+            depth_view.as_ref(),
+            most_likely,
+        )?;
     }
     write_json(&args.out.with_extension("json"), &result)?;
     if let Some(dir) = skipped {
@@ -196,6 +164,61 @@ pub fn run(args: &PredictArgs) -> Result<Value> {
         );
     }
     Ok(result)
+}
+
+/// The models of `--checkpoint`: the rotation model's members (one model, or an ensemble's
+/// from `ensemble.json`, the first's settings shared; none in a translation run), the
+/// translation model where one is used, and the translation model's folder where a pose run
+/// without intrinsics leaves it out (it then predicts the orientation, and says so).
+fn load_models(
+    args: &PredictArgs,
+) -> Result<(Vec<ImplicitPdf>, Option<TranslationPdf>, Option<PathBuf>)> {
+    let translation_only = is_translation_run(&args.checkpoint)?;
+    let members = (!translation_only)
+        .then(|| ImplicitPdf::load_ensemble(&args.checkpoint, default_device()))
+        .transpose()?
+        .unwrap_or_default();
+    let (translation, skipped) = match members.first() {
+        None => (
+            Some(TranslationPdf::load(&args.checkpoint, default_device())?),
+            None,
+        ),
+        Some(model) if args.intrinsics.is_some() || args.camera.is_some() => {
+            (pose_translation_model(&args.checkpoint, model)?, None)
+        }
+        Some(_) => (None, pose_translation_dir(&args.checkpoint)),
+    };
+    Ok((members, translation, skipped))
+}
+
+/// The translation model's answer on `crop` added to `result` (`argmax.cam_t_m2c`,
+/// `translation`), and with the depth view and the most likely rotation the translation
+/// fitted to the depth (`argmax.fitted_cam_t_m2c`).
+fn add_translation(
+    result: &mut Value,
+    model: &TranslationPdf,
+    (crop, geometry): (&FileCrop, &CropGeometry),
+    args: &PredictArgs,
+    depth_view: Option<&DepthView>,
+    most_likely: Option<UnitQuaternion<f64>>,
+) -> Result<()> {
+    let (t, summary) = predict_translation(model, crop, geometry, args)?;
+    result["argmax"]["cam_t_m2c"] = json!([t.x, t.y, t.z]);
+    result["translation"] = summary;
+    if let (Some(view), Some(rotation)) = (depth_view, most_likely) {
+        let pose = Isometry3::from_parts((t / 1000.0).into(), rotation);
+        match view.fit(&pose) {
+            Some(fitted) => {
+                let f = fitted.translation.vector * 1000.0;
+                result["argmax"]["fitted_cam_t_m2c"] = json!([f.x, f.y, f.z]);
+            }
+            None => eprintln!(
+                "ipdf predict: fewer than {MIN_PIXELS} pixels of --mask read a depth where \
+             the mesh at the most likely pose shows its surface: no fitted translation"
+            ),
+        }
+    }
+    Ok(())
 }
 
 /// The rotation distribution written to `--out`, the JSON of the most likely rotation and the
@@ -210,7 +233,7 @@ fn predict_rotation(
     args: &PredictArgs,
 ) -> Result<(Value, UnitQuaternion<f64>, Vec<UnitQuaternion<f64>>)> {
     let mut predictor =
-        Predictor::ensemble(models, Precision::Model)?.with_views(args.views.into())?;
+        Predictor::ensemble(models, Precision::Model)?.with_views(args.frames.views.into())?;
     let crop = crop_tensor(&crop.pixels, models[0].config().input_size as usize);
     // The encoder runs once: the grid's masses and the argmax share the crop's image term.
     let image_term = predictor.image_term(&crop)?;
@@ -371,7 +394,7 @@ fn depth_view(
         scene: Scene::new(std::slice::from_ref(&mesh)),
         mesh,
         obj_id: info.obj_id,
-        sensor: args.sensor,
+        sensor: args.frames.sensor,
     })
 }
 

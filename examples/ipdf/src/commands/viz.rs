@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use super::check_extension;
 use anyhow::{Result, bail};
-use bop_dataset::{BopDataset, read_models_info, read_scene_camera, read_scene_gt};
+use bop_dataset::{BopDataset, SceneDir, read_models_info, read_scene_camera, read_scene_gt};
 use ipdf::eval::rotation::{crop_turn, distribution_figure};
 use ipdf::plots::{plot_training_curves, write_png};
 use ipdf::run_info::RunInfo;
@@ -102,31 +102,7 @@ pub fn run(args: &VizArgs) -> Result<serde_json::Value> {
             (_, _, Some(scene_id), Some(im_id)) => {
                 let dataset = info.dataset(args.dataset.as_deref())?;
                 let scene = dataset.scene(&args.split, scene_id);
-                let truth = if scene.gt_path().exists() {
-                    let gt = read_scene_gt(&scene.gt_path())?;
-                    let instances = gt.get(&im_id).map(Vec::as_slice).unwrap_or_default();
-                    let found = instances.get(args.instance);
-                    let Some(t) = found.filter(|t| t.obj_id == info.obj_id) else {
-                        let what = match found {
-                            Some(t) => format!("instance {} is object {}", args.instance, t.obj_id),
-                            None => format!("has no instance {}", args.instance),
-                        };
-                        bail!(
-                            "{}: image {im_id} {what}, the model is for object {} ({}); {}",
-                            scene.gt_path().display(),
-                            info.obj_id,
-                            info.object,
-                            where_object(&dataset, &args.split, info.obj_id)?
-                        );
-                    };
-                    let models = read_models_info(&dataset.models_info_path())?;
-                    models
-                        .get(&t.obj_id)
-                        .map(|m| m.symmetry.expand(&t.pose.rotation))
-                        .unwrap_or_else(|| vec![t.pose.rotation])
-                } else {
-                    Vec::new()
-                };
+                let truth = truth_rotations(&dataset, &scene, im_id, &info, args)?;
                 let crop = crop_files(
                     &scene.rgb_path(im_id),
                     &scene.visible_mask_path(im_id, args.instance),
@@ -151,6 +127,43 @@ pub fn run(args: &VizArgs) -> Result<serde_json::Value> {
     };
     write_png(&args.out, &image)?;
     Ok(json!({"out": args.out, "width": image.width(), "height": image.height()}))
+}
+
+/// The ground-truth rotations of instance `args.instance` of image `im_id` of `scene`, expanded
+/// by the object's symmetries (`models_info.json`); none where the scene has no ground truth.
+/// An instance of another object is refused, naming where the run's object is.
+fn truth_rotations(
+    dataset: &BopDataset,
+    scene: &SceneDir,
+    im_id: u32,
+    info: &RunInfo,
+    args: &VizArgs,
+) -> Result<Vec<UnitQuaternion<f64>>> {
+    Ok(if scene.gt_path().exists() {
+        let gt = read_scene_gt(&scene.gt_path())?;
+        let instances = gt.get(&im_id).map(Vec::as_slice).unwrap_or_default();
+        let found = instances.get(args.instance);
+        let Some(t) = found.filter(|t| t.obj_id == info.obj_id) else {
+            let what = match found {
+                Some(t) => format!("instance {} is object {}", args.instance, t.obj_id),
+                None => format!("has no instance {}", args.instance),
+            };
+            bail!(
+                "{}: image {im_id} {what}, the model is for object {} ({}); {}",
+                scene.gt_path().display(),
+                info.obj_id,
+                info.object,
+                where_object(dataset, &args.split, info.obj_id)?
+            );
+        };
+        let models = read_models_info(&dataset.models_info_path())?;
+        models
+            .get(&t.obj_id)
+            .map(|m| m.symmetry.expand(&t.pose.rotation))
+            .unwrap_or_else(|| vec![t.pose.rotation])
+    } else {
+        Vec::new()
+    })
 }
 
 /// Where object `obj_id` appears in `split`: its scenes and the flags of its first instance.

@@ -15,6 +15,7 @@ use crate::Error;
 use crate::eval::rotation::RotationEvaluation;
 use crate::eval::surface::VSD_CORRECT;
 use crate::eval::translation::ObjectModel;
+use crate::median::median;
 use crate::training_data::Examples;
 
 /// The thresholds of the rotation accuracies (degrees).
@@ -306,138 +307,170 @@ fn summarise(
     }
 }
 
-/// The median (upper middle) of `values`, sorting them; NaN for none.
-pub fn median(values: &mut [f64]) -> f64 {
-    values.sort_by(f64::total_cmp);
-    values.get(values.len() / 2).copied().unwrap_or(f64::NAN)
-}
-
 /// The instances and their summary as a Markdown table, under a heading naming `what`.
 pub fn markdown(what: &str, rows: &[InstanceScore], accuracy: &Accuracy) -> String {
-    let pose = accuracy
-        .median_translation_error_mm
-        .and(accuracy.add_metric.as_deref());
-    let refined = accuracy
-        .refined_acc_15_or_vsd
-        .and(accuracy.add_metric.as_deref());
-    let mut out = format!(
-        "## {what}\n\n| scene | image | instance | visible | rotation error (°) | VSD | LLH | MAAD (°) | Recall MAAD (°) |"
-    );
-    let mut rule = String::from("|---|---|---|---|---|---|---|---|---|");
-    let fitted = accuracy.median_fitted_translation_error_mm.is_some();
-    if let Some(metric) = pose {
-        let _ = write!(out, " translation error (mm) | {metric} (mm) |");
-        rule.push_str("---|---|");
-        if fitted {
-            let _ = write!(
-                out,
-                " translation fitted to depth: error (mm) | its {metric} (mm) |"
-            );
-            rule.push_str("---|---|");
+    let columns = Columns::of(accuracy);
+    let mut out = format!("## {what}\n\n");
+    columns.write_header(&mut out);
+    for row in rows {
+        columns.write_row(&mut out, row);
+    }
+    columns.write_summary(&mut out, accuracy);
+    out
+}
+
+/// Which of the table's optional column groups a run has: the pose's (its ADD(-S) metric's
+/// name) with or without the translation fitted to depth, and the refined pose's.
+struct Columns<'a> {
+    pose: Option<&'a str>,
+    fitted: bool,
+    refined: Option<&'a str>,
+}
+
+/// A value with one decimal, or a dash for none.
+fn one_decimal(value: Option<f64>) -> String {
+    value.map_or("—".to_string(), |v| format!("{v:.1}"))
+}
+
+impl<'a> Columns<'a> {
+    fn of(accuracy: &'a Accuracy) -> Self {
+        Self {
+            pose: accuracy
+                .median_translation_error_mm
+                .and(accuracy.add_metric.as_deref()),
+            fitted: accuracy.median_fitted_translation_error_mm.is_some(),
+            refined: accuracy
+                .refined_acc_15_or_vsd
+                .and(accuracy.add_metric.as_deref()),
         }
     }
-    if let Some(metric) = refined {
-        let _ = write!(
-            out,
-            " refined with depth: rotation error (°) | its VSD | translation error (mm) | its {metric} (mm) |"
+
+    /// The header line and the rule under it.
+    fn write_header(&self, out: &mut String) {
+        out.push_str(
+            "| scene | image | instance | visible | rotation error (°) | VSD | LLH | MAAD (°) | Recall MAAD (°) |",
         );
-        rule.push_str("---|---|---|---|");
+        let mut rule = String::from("|---|---|---|---|---|---|---|---|---|");
+        if let Some(metric) = self.pose {
+            let _ = write!(out, " translation error (mm) | {metric} (mm) |");
+            rule.push_str("---|---|");
+            if self.fitted {
+                let _ = write!(
+                    out,
+                    " translation fitted to depth: error (mm) | its {metric} (mm) |"
+                );
+                rule.push_str("---|---|");
+            }
+        }
+        if let Some(metric) = self.refined {
+            let _ = write!(
+                out,
+                " refined with depth: rotation error (°) | its VSD | translation error (mm) | its {metric} (mm) |"
+            );
+            rule.push_str("---|---|---|---|");
+        }
+        let _ = writeln!(out, "\n{rule}");
     }
-    let _ = writeln!(out, "\n{rule}");
-    for r in rows {
+
+    /// One instance's line.
+    fn write_row(&self, out: &mut String, r: &InstanceScore) {
         let visible = r
             .visib_fract
             .map_or("—".to_string(), |v| format!("{:.0}%", 100.0 * v));
-        let vsd = r.vsd.map_or("—".to_string(), |v| format!("{v:.2}"));
+        let vsd = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.2}"));
         let _ = write!(
             out,
-            "| {} | {} | {} | {visible} | {:.1} | {vsd} | {:.2} | {:.1} | {:.1} |",
+            "| {} | {} | {} | {visible} | {:.1} | {} | {:.2} | {:.1} | {:.1} |",
             r.scene_id,
             r.im_id,
             r.instance,
             r.rotation_error_deg,
+            vsd(r.vsd),
             r.llh,
             r.maad_deg,
             r.recall_maad_deg
         );
-        if pose.is_some() {
-            let mm = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.1}"));
-            let _ = write!(out, " {} | {} |", mm(r.translation_error_mm), mm(r.add_mm));
-            if fitted {
+        if self.pose.is_some() {
+            let (t, add) = (r.translation_error_mm, r.add_mm);
+            let _ = write!(out, " {} | {} |", one_decimal(t), one_decimal(add));
+            if self.fitted {
                 let (t, add) = (r.fitted_translation_error_mm, r.fitted_add_mm);
-                let _ = write!(out, " {} | {} |", mm(t), mm(add));
+                let _ = write!(out, " {} | {} |", one_decimal(t), one_decimal(add));
             }
         }
-        if refined.is_some() {
-            let one = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.1}"));
-            let vsd = r.refined_vsd.map_or("—".to_string(), |v| format!("{v:.2}"));
+        if self.refined.is_some() {
             let _ = write!(
                 out,
-                " {} | {vsd} | {} | {} |",
-                one(r.refined_rotation_error_deg),
-                one(r.refined_translation_error_mm),
-                one(r.refined_add_mm)
+                " {} | {} | {} | {} |",
+                one_decimal(r.refined_rotation_error_deg),
+                vsd(r.refined_vsd),
+                one_decimal(r.refined_translation_error_mm),
+                one_decimal(r.refined_add_mm)
             );
         }
         out.push('\n');
     }
-    let a = accuracy;
-    let _ = write!(
-        out,
-        "\n{} instances (visible fraction ≥ {}): Acc@15° {:.0}%, Acc@30° {:.0}%, median rotation \
-         error {:.1}°, truth denser than uniform (LLH > {:.2}) for {:.0}%",
-        a.instances,
-        a.min_visib,
-        100.0 * a.acc_15,
-        100.0 * a.acc_30,
-        a.median_rotation_error_deg,
-        a.uniform_llh,
-        100.0 * a.above_uniform
-    );
-    if let Some(share) = a.acc_15_or_vsd {
+
+    /// The summary sentence under the table.
+    fn write_summary(&self, out: &mut String, a: &Accuracy) {
         let _ = write!(
             out,
-            "; a true pose (under 15° or VSD under {VSD_CORRECT}) for {:.0}%",
-            100.0 * share
+            "\n{} instances (visible fraction ≥ {}): Acc@15° {:.0}%, Acc@30° {:.0}%, median rotation \
+             error {:.1}°, truth denser than uniform (LLH > {:.2}) for {:.0}%",
+            a.instances,
+            a.min_visib,
+            100.0 * a.acc_15,
+            100.0 * a.acc_30,
+            a.median_rotation_error_deg,
+            a.uniform_llh,
+            100.0 * a.above_uniform
         );
+        if let Some(share) = a.acc_15_or_vsd {
+            let _ = write!(
+                out,
+                "; a true pose (under 15° or VSD under {VSD_CORRECT}) for {:.0}%",
+                100.0 * share
+            );
+        }
+        if let (Some(metric), Some(share), Some(t)) =
+            (self.pose, a.add_accuracy, a.median_translation_error_mm)
+        {
+            let _ = write!(
+                out,
+                "; {metric} under 10% of the diameter {:.0}%, median translation error {t:.1} mm",
+                100.0 * share
+            );
+        }
+        if let (Some(metric), Some(share), Some(t)) = (
+            self.pose,
+            a.fitted_add_accuracy,
+            a.median_fitted_translation_error_mm,
+        ) {
+            let _ = write!(
+                out,
+                "; with the translation fitted to depth, {metric} under 10% of the diameter \
+                 {:.0}%, median translation error {t:.1} mm",
+                100.0 * share
+            );
+        }
+        if let (Some(metric), Some(share), Some(add_share)) = (
+            self.refined,
+            a.refined_acc_15_or_vsd,
+            a.refined_add_accuracy,
+        ) {
+            let median_of =
+                |v: Option<f64>, unit: &str| v.map_or("—".into(), |v| format!("{v:.1}{unit}"));
+            let _ = write!(
+                out,
+                "; refined with depth from the rotation model's hypotheses, a true pose for \
+                 {:.0}%, median rotation error {}, median translation error {}, {metric} under \
+                 10% of the diameter {:.0}%",
+                100.0 * share,
+                median_of(a.median_refined_rotation_error_deg, "°"),
+                median_of(a.median_refined_translation_error_mm, " mm"),
+                100.0 * add_share
+            );
+        }
+        out.push_str(".\n");
     }
-    if let (Some(metric), Some(share), Some(t)) =
-        (pose, a.add_accuracy, a.median_translation_error_mm)
-    {
-        let _ = write!(
-            out,
-            "; {metric} under 10% of the diameter {:.0}%, median translation error {t:.1} mm",
-            100.0 * share
-        );
-    }
-    if let (Some(metric), Some(share), Some(t)) = (
-        pose,
-        a.fitted_add_accuracy,
-        a.median_fitted_translation_error_mm,
-    ) {
-        let _ = write!(
-            out,
-            "; with the translation fitted to depth, {metric} under 10% of the diameter {:.0}%, \
-             median translation error {t:.1} mm",
-            100.0 * share
-        );
-    }
-    if let (Some(metric), Some(share), Some(add_share)) =
-        (refined, a.refined_acc_15_or_vsd, a.refined_add_accuracy)
-    {
-        let median_of =
-            |v: Option<f64>, unit: &str| v.map_or("—".into(), |v| format!("{v:.1}{unit}"));
-        let _ = write!(
-            out,
-            "; refined with depth from the rotation model's hypotheses, a true pose for {:.0}%, \
-             median rotation error {}, median translation error {}, {metric} under 10% of the \
-             diameter {:.0}%",
-            100.0 * share,
-            median_of(a.median_refined_rotation_error_deg, "°"),
-            median_of(a.median_refined_translation_error_mm, " mm"),
-            100.0 * add_share
-        );
-    }
-    out.push_str(".\n");
-    out
 }

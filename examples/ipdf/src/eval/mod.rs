@@ -14,7 +14,7 @@ use depth_render::SensorPreset;
 use ipdf_model::rotation::{ImplicitPdf, UNDER_RESOLUTION_LIMIT};
 use ipdf_model::translation::TranslationPdf;
 use ipdf_model::{RefineOptions, default_device};
-use nalgebra::Isometry3;
+use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
 use crate::Error;
@@ -22,7 +22,7 @@ use crate::pipeline::config::{is_one, one};
 use crate::run_info::RunInfo;
 use crate::training_data::{CropSource, ExampleOptions, Examples, LabelSource, load_examples};
 use instances::{Accuracy, InstanceScore, PoseParts, RefinedParts, score_instances};
-use rotation::{Picks, evaluate_rotations};
+use rotation::{Picks, RotationEvaluation, evaluate_rotations};
 use translation::{
     ObjectModel, PoseEval, TranslationEval, evaluate_pose, evaluate_translation,
     pose_translation_model,
@@ -336,82 +336,14 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
         None => (None, None, None),
     };
     let (instances, accuracy) = if request.per_instance {
-        let fitted = match &poses {
-            Some((translations, _)) => {
-                let estimates: Vec<Isometry3<f64>> = translations
-                    .iter()
-                    .zip(&evaluation.estimates)
-                    .map(|(t, r)| Isometry3::from_parts((*t).into(), *r))
-                    .collect();
-                surface::depth_fitted_translations(
-                    &dataset,
-                    &request.split,
-                    info.obj_id,
-                    &examples,
-                    &estimates,
-                )?
-            }
-            None => Vec::new(),
+        let run = ScoredRun {
+            request,
+            dataset: &dataset,
+            obj_id: info.obj_id,
+            examples: &examples,
+            evaluation: &evaluation,
         };
-        let pose = poses.as_ref().map(|(translations, object)| PoseParts {
-            translations,
-            object,
-            fitted: &fitted,
-        });
-        let most_likely: Vec<_> = evaluation.estimates.iter().copied().map(Some).collect();
-        let vsd = surface::rotation_vsd(
-            &dataset,
-            &request.split,
-            info.obj_id,
-            &examples,
-            &most_likely,
-        )?;
-        let refined_poses = if refine {
-            surface::depth_refined_poses(
-                &dataset,
-                &request.split,
-                info.obj_id,
-                &examples,
-                &evaluation.hypotheses,
-                request.sensor,
-            )?
-        } else {
-            None
-        };
-        let refined = if let Some(poses) = refined_poses {
-            let rotations: Vec<_> = poses.iter().map(|p| p.map(|p| p.rotation)).collect();
-            let vsd = surface::rotation_vsd(
-                &dataset,
-                &request.split,
-                info.obj_id,
-                &examples,
-                &rotations,
-            )?;
-            Some((poses, vsd))
-        } else {
-            None
-        };
-        let loaded;
-        let object = match (&refined, &poses) {
-            (None, _) => None,
-            (Some(_), Some((_, object))) => Some(object),
-            (Some(_), None) => {
-                loaded = ObjectModel::load(&dataset, info.obj_id)?;
-                Some(&loaded)
-            }
-        };
-        let refined_parts = refined
-            .as_ref()
-            .zip(object)
-            .map(|((poses, vsd), object)| RefinedParts { poses, vsd, object });
-        let (rows, accuracy) = score_instances(
-            &examples,
-            &evaluation,
-            pose.as_ref(),
-            refined_parts.as_ref(),
-            &vsd,
-            request.min_visible_fraction,
-        )?;
+        let (rows, accuracy) = run.score_each_instance(poses.as_ref(), refine)?;
         (rows, Some(accuracy))
     } else {
         (Vec::new(), None)
@@ -446,6 +378,128 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
         instances,
         repaired_rotations: examples.repairs,
     })
+}
+
+/// What the per-instance scores of a run read: the request, the dataset, the object, its
+/// crops and the rotation model's answers on them.
+struct ScoredRun<'a> {
+    request: &'a EvalRequest,
+    dataset: &'a BopDataset,
+    obj_id: u32,
+    examples: &'a Examples,
+    evaluation: &'a RotationEvaluation,
+}
+
+impl ScoredRun<'_> {
+    /// Each instance's scores and their summary: the rotation's VSD, and where the run has a
+    /// translation model (`poses`: its translations and the object) the pose's and the
+    /// translation fitted to the frame's depth; with `refine`, the pose found from the
+    /// hypotheses with the frame's depth too.
+    fn score_each_instance(
+        &self,
+        poses: Option<&(Vec<Vector3<f64>>, ObjectModel)>,
+        refine: bool,
+    ) -> Result<(Vec<InstanceScore>, Accuracy), Error> {
+        let fitted = match poses {
+            Some((translations, _)) => self.depth_fitted(translations)?,
+            None => Vec::new(),
+        };
+        let pose = poses.map(|(translations, object)| PoseParts {
+            translations,
+            object,
+            fitted: &fitted,
+        });
+        let most_likely: Vec<_> = self
+            .evaluation
+            .estimates
+            .iter()
+            .copied()
+            .map(Some)
+            .collect();
+        let vsd = self.vsd(&most_likely)?;
+        let refined = if refine {
+            self.refined_with_depth()?
+        } else {
+            None
+        };
+        let loaded;
+        let object = match (&refined, poses) {
+            (None, _) => None,
+            (Some(_), Some((_, object))) => Some(object),
+            (Some(_), None) => {
+                loaded = ObjectModel::load(self.dataset, self.obj_id)?;
+                Some(&loaded)
+            }
+        };
+        let refined_parts = refined
+            .as_ref()
+            .zip(object)
+            .map(|((poses, vsd), object)| RefinedParts { poses, vsd, object });
+        score_instances(
+            self.examples,
+            self.evaluation,
+            pose.as_ref(),
+            refined_parts.as_ref(),
+            &vsd,
+            self.request.min_visible_fraction,
+        )
+    }
+
+    /// Each crop's most likely pose (the rotation model's estimate, the translation model's
+    /// `translations`) with its translation fitted to the frame's depth, where it could be.
+    fn depth_fitted(
+        &self,
+        translations: &[Vector3<f64>],
+    ) -> Result<Vec<Option<Vector3<f64>>>, Error> {
+        let estimates: Vec<Isometry3<f64>> = translations
+            .iter()
+            .zip(&self.evaluation.estimates)
+            .map(|(t, r)| Isometry3::from_parts((*t).into(), *r))
+            .collect();
+        let request = self.request;
+        surface::depth_fitted_translations(
+            self.dataset,
+            &request.split,
+            self.obj_id,
+            self.examples,
+            &estimates,
+        )
+    }
+
+    /// The VSD of each crop's `rotations` to the truth (`None` where there is none).
+    fn vsd(&self, rotations: &[Option<UnitQuaternion<f64>>]) -> Result<Vec<Option<f64>>, Error> {
+        let request = self.request;
+        surface::rotation_vsd(
+            self.dataset,
+            &request.split,
+            self.obj_id,
+            self.examples,
+            rotations,
+        )
+    }
+
+    /// The poses found from the rotation model's hypotheses with each frame's depth, and their
+    /// rotations' VSD; `None` where the split has no depth.
+    #[allow(clippy::type_complexity)]
+    fn refined_with_depth(
+        &self,
+    ) -> Result<Option<(Vec<Option<Isometry3<f64>>>, Vec<Option<f64>>)>, Error> {
+        let request = self.request;
+        let Some(poses) = surface::depth_refined_poses(
+            self.dataset,
+            &request.split,
+            self.obj_id,
+            self.examples,
+            &self.evaluation.hypotheses,
+            request.sensor,
+        )?
+        else {
+            return Ok(None);
+        };
+        let rotations: Vec<_> = poses.iter().map(|p| p.map(|p| p.rotation)).collect();
+        let vsd = self.vsd(&rotations)?;
+        Ok(Some((poses, vsd)))
+    }
 }
 
 /// Why the scores of `request` may mislead, if they may: a grid level too coarse for the

@@ -283,7 +283,7 @@ mod tests {
     use std::f64::consts::{FRAC_PI_2, PI};
 
     use bop_dataset::{BopDataset, Intrinsics, write_depth, write_mesh_ply, write_scene_camera};
-    use depth_render::primitives::{cuboid, mug};
+    use depth_render::primitives::{MugShape, cuboid, mug};
     use depth_render::{Instance, PinholeCamera, Scene, TriangleMesh, Window};
     use nalgebra::{Isometry3, Matrix3, UnitQuaternion, Vector3};
     use tch::{Device, Kind, Tensor};
@@ -347,7 +347,15 @@ mod tests {
     /// that its bounding box's centre lies 2 cm off its axis) 40 cm away, seen from the side and
     /// 10° above, its handle pointing away from the camera behind the cup.
     fn mug_dataset(root: &std::path::Path) -> (BopDataset, Isometry3<f64>, TriangleMesh) {
-        let mesh = mug(0.04, 0.10, 0.004, 0.035, 0.01, 48).unwrap();
+        let mesh = mug(&MugShape {
+            radius: 0.04,
+            height: 0.10,
+            wall: 0.004,
+            handle_reach: 0.035,
+            handle_thickness: 0.01,
+            segments: 48,
+        })
+        .unwrap();
         let (sin, cos) = 10f64.to_radians().sin_cos();
         // Columns: the mesh's x (the handle) away from the camera, its y to the left, its z
         // (the opening) up, each tilted by the 10° from above.

@@ -19,7 +19,7 @@ use tch::Tensor;
 use bop_dataset::BopDataset;
 
 use crate::Error;
-use crate::eval::instances::median;
+use crate::median::median;
 use crate::training::TRANSLATION_DIR;
 use crate::training_data::{Examples, to_unit_floats};
 

@@ -481,52 +481,7 @@ impl MeshReport {
     /// on the real split (each instance's), the time per stage.
     pub fn to_markdown(&self) -> String {
         let c = &self.config;
-        let p = &c.plan;
-        let mut out = format!(
-            "# {}: a pose model from its mesh\n\n{} preset, seed {}: {} training and {} \
-             validation renders of `{}` (randomised: {}; {}), {}{}{} on {}-pixel crops, {} \
-             epochs of {} steps of {} (translation {} epochs), occlusion{}.\n\n",
-            self.object,
-            p.preset.name(),
-            c.seed,
-            p.frames,
-            p.val_frames,
-            c.mesh.display(),
-            if c.randomize.is_empty() {
-                "nothing".to_string()
-            } else {
-                c.randomize.join(", ")
-            },
-            p.sensor
-                .map_or("clean depth".to_string(), |s| format!("{} depth", s.name())),
-            p.encoder.name(),
-            match &p.pretrained {
-                Some(path) if p.frozen_blocks > 0 => format!(
-                    " from `{}` ({} blocks frozen)",
-                    path.display(),
-                    p.frozen_blocks
-                ),
-                Some(path) => format!(" from `{}`", path.display()),
-                None => String::new(),
-            },
-            match (p.rotation_members, p.translation_encoder) {
-                (1, None) => String::new(),
-                (1, Some(t)) => format!(" (translation: {})", t.name()),
-                (k, None) => format!(" (rotation: an ensemble of {k})"),
-                (k, Some(t)) =>
-                    format!(" (rotation: an ensemble of {k}; translation: {})", t.name()),
-            },
-            p.input_size,
-            p.epochs,
-            p.steps_per_epoch,
-            p.batch_size,
-            p.translation_epochs,
-            if p.blur > 0.0 {
-                format!(" and blur up to σ = {} px", p.blur)
-            } else {
-                String::new()
-            },
-        );
+        let mut out = self.settings_markdown();
         let against = if c.real.is_some() {
             "against the rendered pose and its symmetries, which the real split's \
              models_info.json gives"
@@ -580,5 +535,56 @@ impl MeshReport {
         out.pop();
         out += ".\n";
         out
+    }
+
+    /// The report's heading and the run's settings, as a paragraph.
+    fn settings_markdown(&self) -> String {
+        let c = &self.config;
+        let p = &c.plan;
+        format!(
+            "# {}: a pose model from its mesh\n\n{} preset, seed {}: {} training and {} \
+             validation renders of `{}` (randomised: {}; {}), {}{}{} on {}-pixel crops, {} \
+             epochs of {} steps of {} (translation {} epochs), occlusion{}.\n\n",
+            self.object,
+            p.preset.name(),
+            c.seed,
+            p.frames,
+            p.val_frames,
+            c.mesh.display(),
+            if c.randomize.is_empty() {
+                "nothing".to_string()
+            } else {
+                c.randomize.join(", ")
+            },
+            p.sensor
+                .map_or("clean depth".to_string(), |s| format!("{} depth", s.name())),
+            p.encoder.name(),
+            match &p.pretrained {
+                Some(path) if p.frozen_blocks > 0 => format!(
+                    " from `{}` ({} blocks frozen)",
+                    path.display(),
+                    p.frozen_blocks
+                ),
+                Some(path) => format!(" from `{}`", path.display()),
+                None => String::new(),
+            },
+            match (p.rotation_members, p.translation_encoder) {
+                (1, None) => String::new(),
+                (1, Some(t)) => format!(" (translation: {})", t.name()),
+                (k, None) => format!(" (rotation: an ensemble of {k})"),
+                (k, Some(t)) =>
+                    format!(" (rotation: an ensemble of {k}; translation: {})", t.name()),
+            },
+            p.input_size,
+            p.epochs,
+            p.steps_per_epoch,
+            p.batch_size,
+            p.translation_epochs,
+            if p.blur > 0.0 {
+                format!(" and blur up to σ = {} px", p.blur)
+            } else {
+                String::new()
+            },
+        )
     }
 }
