@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """The demo's table of docs/results.md and the README, made from a run's report.json.
 
-    scripts/demo-table.py runs/demo/report.json [--commit C] [--cpu "2-core AMD EPYC"]
+    scripts/demo-table.py runs/demo/report.json [--objects can,box,bowl] [--commit C]
+        [--cpu "2-core AMD EPYC"]
 
 Prints the Markdown table (one row per label source: the objects' LLH, MAAD and Recall MAAD
 joined by " / ", then the Pseudo models' average over the objects, as report.md averages them)
@@ -17,9 +18,9 @@ ROWS = ("single", "analytical", "pseudo")
 PAPER = "| paper, pseudo | average | 3.79 | 6.26° | 2.18° |"
 
 
-def table(report):
+def table(report, order=None):
     models = report["models"]
-    objects = list(models["pseudo"])
+    objects = order or list(models["pseudo"])
     lines = [
         "| labels | object | LLH ↑ | MAAD ↓ | Recall MAAD ↓ |",
         "|---|---|---|---|---|",
@@ -48,13 +49,14 @@ def table(report):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("report", help="the run's report.json")
+    parser.add_argument("--objects", help="the objects' order, comma-separated (default: the report's)")
     parser.add_argument("--commit", help="the commit the run was made at")
     parser.add_argument("--cpu", help="the CPU it ran on, as the docs name it")
     args = parser.parse_args()
     try:
         with open(args.report, encoding="utf-8") as f:
             report = json.load(f)
-        text = table(report)
+        text = table(report, args.objects.split(",") if args.objects else None)
     except (OSError, ValueError, KeyError, ZeroDivisionError) as error:
         sys.exit(f"demo-table: {args.report}: {error!r}")
     if args.commit or args.cpu:
