@@ -1,8 +1,8 @@
 //! Checkpoints: a folder with `checkpoint.json` (configuration, training options, step, and
 //! the names of the tensor files), `model-<step>.safetensors` and, while training,
 //! `optimizer-<step>.safetensors` (Adam's moments). Tensor files are written under a temporary
-//! name (`.NAME.partial`, reused by the next write of the same file) and renamed; `checkpoint.json` is renamed last, so a killed write leaves the previous
-//! checkpoint intact. Files of older steps are removed after the new JSON is in place.
+//! name (`.NAME.partial`, reused by the next write of the same file) and renamed;
+//! `checkpoint.json` is renamed last, so a killed write leaves the previous checkpoint intact. Files of older steps are removed after the new JSON is in place.
 use std::collections::HashMap;
 use std::path::Path;
 

@@ -214,7 +214,7 @@ fn add_translation(
             }
             None => eprintln!(
                 "ipdf predict: fewer than {MIN_PIXELS} pixels of --mask read a depth where \
-             the mesh at the most likely pose shows its surface: no fitted translation"
+                 the mesh at the most likely pose shows its surface: no fitted translation"
             ),
         }
     }

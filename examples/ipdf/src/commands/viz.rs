@@ -139,31 +139,30 @@ fn truth_rotations(
     info: &RunInfo,
     args: &VizArgs,
 ) -> Result<Vec<UnitQuaternion<f64>>> {
-    Ok(if scene.gt_path().exists() {
-        let gt = read_scene_gt(&scene.gt_path())?;
-        let instances = gt.get(&im_id).map(Vec::as_slice).unwrap_or_default();
-        let found = instances.get(args.instance);
-        let Some(t) = found.filter(|t| t.obj_id == info.obj_id) else {
-            let what = match found {
-                Some(t) => format!("instance {} is object {}", args.instance, t.obj_id),
-                None => format!("has no instance {}", args.instance),
-            };
-            bail!(
-                "{}: image {im_id} {what}, the model is for object {} ({}); {}",
-                scene.gt_path().display(),
-                info.obj_id,
-                info.object,
-                where_object(dataset, &args.split, info.obj_id)?
-            );
+    if !scene.gt_path().exists() {
+        return Ok(Vec::new());
+    }
+    let gt = read_scene_gt(&scene.gt_path())?;
+    let instances = gt.get(&im_id).map(Vec::as_slice).unwrap_or_default();
+    let found = instances.get(args.instance);
+    let Some(t) = found.filter(|t| t.obj_id == info.obj_id) else {
+        let what = match found {
+            Some(t) => format!("instance {} is object {}", args.instance, t.obj_id),
+            None => format!("has no instance {}", args.instance),
         };
-        let models = read_models_info(&dataset.models_info_path())?;
-        models
-            .get(&t.obj_id)
-            .map(|m| m.symmetry.expand(&t.pose.rotation))
-            .unwrap_or_else(|| vec![t.pose.rotation])
-    } else {
-        Vec::new()
-    })
+        bail!(
+            "{}: image {im_id} {what}, the model is for object {} ({}); {}",
+            scene.gt_path().display(),
+            info.obj_id,
+            info.object,
+            where_object(dataset, &args.split, info.obj_id)?
+        );
+    };
+    let models = read_models_info(&dataset.models_info_path())?;
+    Ok(models
+        .get(&t.obj_id)
+        .map(|m| m.symmetry.expand(&t.pose.rotation))
+        .unwrap_or_else(|| vec![t.pose.rotation]))
 }
 
 /// Where object `obj_id` appears in `split`: its scenes and the flags of its first instance.

@@ -380,6 +380,10 @@ pub fn evaluate_run(request: &EvalRequest, progress: &dyn Progress) -> Result<Ev
     })
 }
 
+/// Each crop's pose found with its frame's depth (where one was), and that pose's rotation's
+/// VSD to the truth.
+type RefinedWithDepth = (Vec<Option<Isometry3<f64>>>, Vec<Option<f64>>);
+
 /// What the per-instance scores of a run read: the request, the dataset, the object, its
 /// crops and the rotation model's answers on them.
 struct ScoredRun<'a> {
@@ -456,10 +460,9 @@ impl ScoredRun<'_> {
             .zip(&self.evaluation.estimates)
             .map(|(t, r)| Isometry3::from_parts((*t).into(), *r))
             .collect();
-        let request = self.request;
         surface::depth_fitted_translations(
             self.dataset,
-            &request.split,
+            &self.request.split,
             self.obj_id,
             self.examples,
             &estimates,
@@ -468,10 +471,9 @@ impl ScoredRun<'_> {
 
     /// The VSD of each crop's `rotations` to the truth (`None` where there is none).
     fn vsd(&self, rotations: &[Option<UnitQuaternion<f64>>]) -> Result<Vec<Option<f64>>, Error> {
-        let request = self.request;
         surface::rotation_vsd(
             self.dataset,
-            &request.split,
+            &self.request.split,
             self.obj_id,
             self.examples,
             rotations,
@@ -480,10 +482,7 @@ impl ScoredRun<'_> {
 
     /// The poses found from the rotation model's hypotheses with each frame's depth, and their
     /// rotations' VSD; `None` where the split has no depth.
-    #[allow(clippy::type_complexity)]
-    fn refined_with_depth(
-        &self,
-    ) -> Result<Option<(Vec<Option<Isometry3<f64>>>, Vec<Option<f64>>)>, Error> {
+    fn refined_with_depth(&self) -> Result<Option<RefinedWithDepth>, Error> {
         let request = self.request;
         let Some(poses) = surface::depth_refined_poses(
             self.dataset,
